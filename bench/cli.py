@@ -1,0 +1,216 @@
+"""The `sunbench` command line.
+
+Every command ends bad input with one line on stderr naming the file, row and column, and exit code 2,
+never a traceback.
+"""
+
+from __future__ import annotations
+
+import functools
+import sys
+from importlib import metadata
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from calibration.design import DEFAULT_BENCH, DEFAULT_SENSOR, BenchGeometry
+from calibration.errors import CalibrationError
+from calibration.evaluation import MethodReport, best_method, compare_methods
+from calibration.export import c_header
+from calibration.models import METHODS, Calibration
+from calibration.models.physical import PhysicalCalibration
+from calibration.pinhole import PinholeBuild
+from calibration.synthetic import EXAMPLE_BUILD, synthetic_bench_data
+
+from .datafile import (DataFileError, calibration_document, read_bench_csv, read_calibration, read_spots_csv,
+                       write_applied_csv, write_bench_csv, write_calibration)
+
+app = typer.Typer(help="sunbench: sun-sensor calibration bench.", no_args_is_help=True, add_completion=False)
+fit_app = typer.Typer(help="Fit a calibration to bench data.", no_args_is_help=True)
+app.add_typer(fit_app, name="fit")
+
+out = Console()
+err = Console(stderr=True)
+
+
+def _version() -> str:
+    try:
+        return metadata.version("sunbench")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def _user_errors(command):
+    """Turn the typed errors of bad input into one stderr line and exit code 2."""
+
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except (DataFileError, CalibrationError) as exc:
+            err.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
+            raise typer.Exit(2) from None
+        except OSError as exc:
+            err.print(f"[bold red]error:[/] {exc.filename or ''}: {exc.strerror}", highlight=False)
+            raise typer.Exit(2) from None
+
+    return wrapper
+
+
+def _f(value: float, digits: int = 3) -> str:
+    return "—" if value != value else f"{value:.{digits}f}"  # NaN → dash
+
+
+def metrics_table(reports: list[MethodReport], chosen: str | None) -> Table:
+    """Seed 003 Table 4.1 columns for every method, held out and at the fitted nodes."""
+    notes: list[str] = []
+    table = Table(title="Accuracy held out (leave one azimuth out) [°]; * = chosen", title_justify="left")
+    table.add_column("method", no_wrap=True)
+    for name in ("RMS zenith", "RMS azimuth", "RMS vector", "95 % (2×RMS)", "max vector", "RMS at nodes"):
+        table.add_column(name, justify="right", max_width=9)
+    for r in reports:
+        label = r.method + (" *" if r.method == chosen else "")
+        if r.calibration is None:
+            table.add_row(label, *["[dim]—[/]"] * 6)
+            notes.append(f"not fitted: {r.error}")
+            continue
+        h = r.heldout
+        row = [_f(h.rms_zenith_deg, 4), _f(h.rms_azimuth_deg, 4), _f(h.rms_vector_deg, 4), _f(h.bound95_deg, 4),
+               _f(h.max_vector_deg, 4)] if h else ["—"] * 5
+        table.add_row(label, *row, _f(r.fitted.rms_vector_deg, 4))
+        if r.error:
+            notes.append(f"{r.method}: {r.error}")
+    table.caption = "\n".join(notes) or None
+    table.caption_justify = "left"
+    return table
+
+
+def physical_table(cal: PhysicalCalibration, truth: PinholeBuild | None = None) -> Table:
+    table = Table(title="Physical model: fitted build", title_justify="left")
+    for name in ("parameter", "fitted", "± 1σ") + (("truth",) if truth else ()):
+        table.add_column(name, justify="left" if name == "parameter" else "right")
+    for name in cal.fitted:
+        row = [name, f"{getattr(cal, name):.5f}", f"{cal.uncertainties[name]:.5f}"]
+        if truth:
+            row.append(f"{getattr(truth, name):.5f}")
+        table.add_row(*row)
+    return table
+
+
+def _fit_and_report(data, method: Optional[str]) -> tuple[Calibration, list[MethodReport]]:
+    with err.status("fitting and cross-validating every method…"):
+        reports = compare_methods(data)
+    chosen = best_method(reports).method if method is None else method
+    report = next(r for r in reports if r.method == chosen)
+    if report.calibration is None:
+        raise CalibrationError(f"method {chosen} could not be fitted: {report.error}")
+    out.print(metrics_table(reports, chosen))
+    return report.calibration, reports
+
+
+@fit_app.command("cmos")
+@_user_errors
+def fit_cmos(
+    data_csv: Path = typer.Argument(..., help="Bench data CSV (see the README)."),
+    method: Optional[str] = typer.Option(None, "--method", "-m",
+                                         help=f"One of {', '.join(METHODS)}; default: the most accurate held out."),
+    output: Optional[Path] = typer.Option(None, "--output", "-o", help="Write the calibration JSON here."),
+    header: Optional[Path] = typer.Option(None, "--header", help="Also write a C header for the sensor's MCU."),
+    sensor: Optional[str] = typer.Option(None, "--sensor", help="Fit this sensor_id of a multi-sensor file."),
+    lever_arm_mm: float = typer.Option(DEFAULT_BENCH.lever_arm_mm, help="Stage angles only: axis-to-sensor "
+                                                                        "distance d of seed 003 eq. 8 [mm]."),
+    source_distance_mm: float = typer.Option(DEFAULT_BENCH.source_distance_mm,
+                                             help="Stage angles only: sensor-to-simulator distance L [mm]."),
+) -> None:
+    """Fit a CMOS pinhole sensor's calibration; print the accuracy of every method side by side."""
+    if method is not None and method not in METHODS:
+        raise CalibrationError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
+    try:
+        bench = BenchGeometry(lever_arm_mm=lever_arm_mm, source_distance_mm=source_distance_mm)
+    except ValueError as exc:
+        raise CalibrationError(str(exc)) from None
+    data = read_bench_csv(data_csv, bench=bench, sensor_id=sensor)
+    try:
+        calibration, reports = _fit_and_report(data, method)
+    except CalibrationError as exc:
+        raise DataFileError(data_csv, str(exc), column=getattr(exc, "column", None)) from None
+    if isinstance(calibration, PhysicalCalibration):
+        out.print(physical_table(calibration))
+    out.print(f"{len(data)} points from {data_csv}; method [bold]{calibration.method}[/]")
+    if output:
+        write_calibration(output, calibration_document(calibration, sensor_id=data.sensor_id, source=str(data_csv),
+                                                       reports=reports, software=f"sunbench {_version()}"))
+        out.print(f"calibration written to {output}")
+    if header:
+        _write_text(header, c_header(calibration, sensor_id=data.sensor_id))
+        out.print(f"C header written to {header}")
+
+
+def _write_text(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+
+
+@app.command("apply")
+@_user_errors
+def apply_calibration(
+    calibration_json: Path = typer.Argument(..., help="Calibration JSON written by `sunbench fit`."),
+    spots_csv: Path = typer.Argument(..., help="CSV with x_px, y_px columns."),
+    output: Path = typer.Option(..., "--output", "-o", help="Output CSV: the input columns + zenith_deg, azimuth_deg."),
+) -> None:
+    """Turn spot centres into sun directions with a fitted calibration."""
+    calibration, _ = read_calibration(calibration_json)
+    table, x, y = read_spots_csv(spots_csv)
+    zenith, azimuth = calibration.apply(x, y)
+    write_applied_csv(output, table, zenith, azimuth)
+    out.print(f"{len(x)} directions written to {output} (method {calibration.method})")
+
+
+@app.command("header")
+@_user_errors
+def export_header(
+    calibration_json: Path = typer.Argument(..., help="Calibration JSON written by `sunbench fit`."),
+    output: Path = typer.Option(..., "--output", "-o", help="C header to write."),
+) -> None:
+    """Export a calibration as a C header with `sunbench_sun_direction()` for the sensor's MCU."""
+    calibration, document = read_calibration(calibration_json)
+    _write_text(output, c_header(calibration, sensor_id=document.get("sensor_id")))
+    out.print(f"C header written to {output}")
+
+
+@app.command("demo")
+@_user_errors
+def demo(
+    seed: int = typer.Option(1, help="Seed of the simulated centroid noise."),
+    noise_px: float = typer.Option(0.02, help="Centroid noise, one sigma per axis [px]."),
+    output_dir: Optional[Path] = typer.Option(None, "--out", help="Also save the bench data CSV, the "
+                                                                 "calibration JSON and the C header here."),
+) -> None:
+    """Simulate a seed 003 calibration run of a sensor with known build errors and fit it."""
+    truth = EXAMPLE_BUILD
+    data = synthetic_bench_data(truth, noise_px=noise_px, seed=seed)
+    out.print(f"Simulated sensor {data.sensor_id}: pinhole at ({truth.x0_px}, {truth.y0_px}) px, air gap "
+              f"{truth.gap_mm} mm over {truth.glass_mm} mm of glass (n = {truth.glass_index}), detector tilt "
+              f"α = {truth.tilt_x_deg}°, β = {truth.tilt_y_deg}°, rotation {truth.rotation_deg}°; "
+              f"seed 003 grid, {len(data)} frames, centroid noise {noise_px} px.")
+    calibration, reports = _fit_and_report(data, None)
+    if isinstance(calibration, PhysicalCalibration):
+        out.print(physical_table(calibration, truth))
+    if output_dir:
+        write_bench_csv(output_dir / "bench-data.csv", data)
+        write_calibration(output_dir / "calibration.json",
+                          calibration_document(calibration, sensor_id=data.sensor_id, source="sunbench demo",
+                                               reports=reports, software=f"sunbench {_version()}"))
+        _write_text(output_dir / "calibration.h", c_header(calibration, sensor_id=data.sensor_id))
+        out.print(f"bench data, calibration and C header written to {output_dir}/")
+
+
+def main() -> None:  # pragma: no cover - entry point
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,269 @@
+"""Files a lab engineer hands to sunbench: the bench data CSV, spot CSVs and calibration JSON.
+
+Every problem is a :class:`DataFileError` that names the file, and where it can the row and the column,
+so the CLI can say exactly what to fix. The CSV format is documented in the README ("Bench data CSV").
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from calibration.data import BenchData
+from calibration.design import BenchGeometry
+from calibration.errors import BenchDataError, CalibrationFormatError
+from calibration.geometry import incidence_from_stage_angle
+from calibration.models import Calibration, calibration_from_dict
+
+TRUE_COLUMNS = ("zenith_deg", "azimuth_deg")
+STAGE_COLUMNS = ("stage_zenith_deg", "stage_azimuth_deg")
+SPOT_COLUMNS = ("x_px", "y_px")
+OPTIONAL_NUMERIC = ("repeat", "exposure_ms")
+
+
+class DataFileError(Exception):
+    """A file sunbench cannot use, with where the problem is.
+
+    Attributes
+    ----------
+    path : str
+    row : int or None
+        Data row, 1-based (the header is not counted).
+    line : int or None
+        Line in the file, 1-based.
+    column : str or None
+    """
+
+    def __init__(self, path, message: str, *, row: int | None = None, line: int | None = None,
+                 column: str | None = None):
+        self.path, self.row, self.line, self.column = str(path), row, line, column
+        where = [self.path]
+        if row is not None:
+            where.append(f"row {row}" + (f" (line {line})" if line is not None else ""))
+        if column is not None:
+            where.append(f"column '{column}'")
+        super().__init__(", ".join(where) + ": " + message)
+
+
+@dataclass(frozen=True)
+class CsvTable:
+    """Cells of a CSV file by column, with the file line of every data row."""
+
+    path: str
+    header: list[str]
+    rows: list[list[str]]
+    lines: list[int]
+
+    def has(self, column: str) -> bool:
+        return column in self.header
+
+    def numbers(self, column: str, *, integer: bool = False) -> np.ndarray:
+        """The column as finite numbers; the first bad cell raises :class:`DataFileError`."""
+        j = self.header.index(column)
+        out = np.empty(len(self.rows), dtype=float)
+        for i, row in enumerate(self.rows):
+            cell = row[j].strip()
+            try:
+                value = float(cell)
+            except ValueError:
+                raise DataFileError(self.path, f"{cell!r} is not a number" if cell else "empty cell",
+                                    row=i + 1, line=self.lines[i], column=column) from None
+            if not math.isfinite(value):
+                raise DataFileError(self.path, f"{cell!r} is not a finite number", row=i + 1,
+                                    line=self.lines[i], column=column)
+            if integer and value != int(value):
+                raise DataFileError(self.path, f"{cell!r} is not a whole number", row=i + 1,
+                                    line=self.lines[i], column=column)
+            out[i] = value
+        return out
+
+    def texts(self, column: str) -> list[str]:
+        j = self.header.index(column)
+        return [row[j].strip() for row in self.rows]
+
+
+def read_csv_table(path) -> CsvTable:
+    """Read a CSV with a header row; blank lines and lines starting with ``#`` are skipped."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise DataFileError(path, "no such file") from None
+    except UnicodeDecodeError:
+        raise DataFileError(path, "not a text (UTF-8) file") from None
+    except OSError as exc:
+        raise DataFileError(path, f"cannot read ({exc.strerror})") from None
+    header, rows, lines = None, [], []
+    reader = csv.reader(text.splitlines())
+    try:
+        for cells in reader:
+            if not cells or not "".join(cells).strip() or cells[0].lstrip().startswith("#"):
+                continue
+            if header is None:
+                header = [c.strip() for c in cells]
+                dup = sorted({c for c in header if header.count(c) > 1})
+                if dup:
+                    raise DataFileError(path, f"duplicate column(s) {', '.join(dup)} in the header",
+                                        line=reader.line_num)
+                continue
+            if len(cells) != len(header):
+                raise DataFileError(path, f"{len(cells)} cells, the header has {len(header)}",
+                                    row=len(rows) + 1, line=reader.line_num)
+            rows.append(cells)
+            lines.append(reader.line_num)
+    except csv.Error as exc:
+        raise DataFileError(path, f"malformed CSV ({exc})", line=reader.line_num) from None
+    if header is None:
+        raise DataFileError(path, "empty file: no header row")
+    return CsvTable(str(path), header, rows, lines)
+
+
+def _require(table: CsvTable, columns) -> None:
+    missing = [c for c in columns if not table.has(c)]
+    if missing:
+        raise DataFileError(table.path, f"missing column(s) {', '.join(missing)}; the header has "
+                                        f"{', '.join(table.header)}")
+
+
+def read_bench_csv(path, *, bench: BenchGeometry | None = None, sensor_id: str | None = None) -> BenchData:
+    """Read a bench data CSV (README, "Bench data CSV") into :class:`BenchData`.
+
+    Parameters
+    ----------
+    path : path-like
+    bench : BenchGeometry, optional
+        Converts `stage_zenith_deg` to the true zenith with seed 003 eq. 8 when the file has stage angles
+        instead of `zenith_deg, azimuth_deg`. Required in that case.
+    sensor_id : str, optional
+        Keep only this sensor's rows (a file may hold a batch).
+    """
+    table = read_csv_table(path)
+    stage = not all(table.has(c) for c in TRUE_COLUMNS)
+    _require(table, SPOT_COLUMNS + (STAGE_COLUMNS if stage else TRUE_COLUMNS))
+    if not table.rows:
+        raise DataFileError(table.path, "no data rows")
+    keep = np.ones(len(table.rows), dtype=bool)
+    if table.has("sensor_id"):
+        ids = table.texts("sensor_id")
+        distinct = sorted(set(ids))
+        if sensor_id is not None:
+            keep = np.array([i == sensor_id for i in ids])
+            if not keep.any():
+                raise DataFileError(table.path, f"no rows of sensor {sensor_id!r} (it has {', '.join(distinct)})",
+                                    column="sensor_id")
+        elif len(distinct) > 1:
+            raise DataFileError(table.path, f"holds {len(distinct)} sensors ({', '.join(distinct[:5])}"
+                                            f"{', …' if len(distinct) > 5 else ''}); choose one with --sensor",
+                                column="sensor_id")
+        else:
+            sensor_id = distinct[0]
+    elif sensor_id is not None:
+        raise DataFileError(table.path, f"has no sensor_id column, so it cannot select sensor {sensor_id!r}")
+    x, y = table.numbers("x_px"), table.numbers("y_px")
+    if stage:
+        if bench is None:
+            raise DataFileError(table.path, "has stage angles; the bench geometry is needed to convert them")
+        omega, stage_az = table.numbers("stage_zenith_deg"), table.numbers("stage_azimuth_deg")
+        theta = incidence_from_stage_angle(omega, bench.lever_arm_mm, bench.source_distance_mm)  # eq. 8
+        zenith = np.abs(theta)
+        azimuth = np.where(theta < 0, stage_az + 180.0, stage_az)  # a negative tilt looks from the far side
+    else:
+        zenith, azimuth = table.numbers("zenith_deg"), table.numbers("azimuth_deg")
+    optional = {name: table.numbers(name, integer=(name == "repeat")) if table.has(name) else None
+                for name in OPTIONAL_NUMERIC}
+    zen_column = "stage_zenith_deg" if stage else "zenith_deg"
+    try:
+        data = BenchData(zenith, azimuth, x, y, repeat=optional["repeat"], sensor_id=sensor_id,
+                         exposure_ms=optional["exposure_ms"])
+    except BenchDataError as exc:
+        row = None if exc.row is None else exc.row + 1
+        column = zen_column if exc.column == "zenith_deg" else exc.column
+        raise DataFileError(table.path, str(exc), row=row, line=None if row is None else table.lines[row - 1],
+                            column=column) from None
+    return data.subset(keep) if not keep.all() else data
+
+
+def write_bench_csv(path, data: BenchData) -> None:
+    """Write bench data in the format :func:`read_bench_csv` reads (true angles)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        columns = ["zenith_deg", "azimuth_deg", "x_px", "y_px"]
+        columns += [c for c in ("repeat", "exposure_ms") if getattr(data, c) is not None]
+        columns += ["sensor_id"] if data.sensor_id else []
+        w.writerow(columns)
+        for i in range(len(data)):
+            row = [repr(float(getattr(data, c)[i])) for c in columns[:4]]
+            if data.repeat is not None:
+                row.append(int(data.repeat[i]))
+            if data.exposure_ms is not None:
+                row.append(repr(float(data.exposure_ms[i])))
+            if data.sensor_id:
+                row.append(data.sensor_id)
+            w.writerow(row)
+
+
+def read_spots_csv(path) -> tuple[CsvTable, np.ndarray, np.ndarray]:
+    """A CSV with at least `x_px, y_px`; returns the table (to repeat its columns) and the two columns."""
+    table = read_csv_table(path)
+    _require(table, SPOT_COLUMNS)
+    return table, table.numbers("x_px"), table.numbers("y_px")
+
+
+def write_applied_csv(path, table: CsvTable, zenith_deg, azimuth_deg) -> None:
+    """The spot CSV's columns, then `zenith_deg, azimuth_deg` from the calibration.
+
+    Input columns of those two names (say, the bench's true angles) are kept as `input_zenith_deg` and
+    `input_azimuth_deg`.
+    """
+    header = [f"input_{c}" if c in TRUE_COLUMNS else c for c in table.header] + list(TRUE_COLUMNS)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        for row, z, a in zip(table.rows, zenith_deg, azimuth_deg):
+            w.writerow([*row, f"{z:.6f}", f"{a:.6f}"])
+
+
+def calibration_document(calibration: Calibration, *, sensor_id: str | None, source: str | None,
+                         reports=None, software: str | None = None) -> dict:
+    """The calibration JSON: the versioned model document plus provenance and the metrics table."""
+    document = calibration.to_dict()
+    document.update({
+        "sensor_id": sensor_id,
+        "created_utc": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
+        "software": software,
+        "source": source,
+    })
+    if reports:
+        document["metrics"] = {r.method: r.to_dict() for r in reports}
+    return document
+
+
+def write_calibration(path, document: dict) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(document, indent=2) + "\n")
+
+
+def read_calibration(path) -> tuple[Calibration, dict]:
+    """Load a calibration JSON; other formats or versions raise :class:`DataFileError`."""
+    path = Path(path)
+    try:
+        document = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise DataFileError(path, "no such file") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise DataFileError(path, f"not a JSON calibration file ({exc})") from None
+    try:
+        return calibration_from_dict(document), document
+    except CalibrationFormatError as exc:
+        raise DataFileError(path, str(exc)) from None

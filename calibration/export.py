@@ -1,0 +1,162 @@
+"""Export of a calibration as a C header for the sensor's microcontroller.
+
+The header holds the coefficients and a ``static inline`` function that turns a spot centre into the sun
+direction exactly as :meth:`Calibration.apply` does, so the firmware and this library agree to rounding
+(a test compiles the header and checks it). Doubles are printed with Python's shortest round-trip repr,
+so the C constants are the very same binary values.
+
+References
+----------
+seed 003, §3.2 and §6: the direction algorithm with its calibration parameters runs on the module's MCU
+(STM32F410).
+"""
+
+from __future__ import annotations
+
+import re
+
+from .geometry import combined_tilt
+from .models import Calibration
+from .models.physical import PhysicalCalibration
+from .models.seed003 import Seed003Calibration, Seed003SectorCalibration, Seed003TiltCalibration
+from .pinhole import detector_rotation
+
+
+def _num(value: float) -> str:
+    return repr(float(value))
+
+
+def _array(values) -> str:
+    return "{" + ", ".join(_num(v) for v in values) + "}"
+
+
+_PRELUDE = """\
+#include <math.h>
+
+#define SB_DEG (57.29577951308232)
+#define SB_RAD (0.017453292519943295)
+
+/* Wrap an angle to [0, 360) degrees (like numpy.mod, unlike fmod, for negative input). */
+static inline double sb_wrap360(double a) {
+    double w = fmod(a, 360.0);
+    return w < 0.0 ? w + 360.0 : w;
+}
+"""
+
+_SEED003_BODY = """\
+/* Horner evaluation of theta(u) = sum c[i] u^i, u = r / SB_RADIUS_SCALE_PX (seed 003 eq. 9). */
+static inline double sb_poly6(const double c[7], double u) {
+    double v = c[6];
+    for (int i = 5; i >= 0; --i) v = v * u + c[i];
+    return v;
+}
+
+/* Spot centre [px] -> sun direction in the body frame [deg]. */
+static inline void sunbench_sun_direction(double x_px, double y_px, double *zenith_deg, double *azimuth_deg) {
+    double dx = x_px - SB_X0_PX, dy = y_px - SB_Y0_PX;
+    double r = sqrt(dx * dx + dy * dy);                               /* seed 003 eq. 7 */
+    double meas = sb_wrap360(atan2(dx, -dy) * SB_DEG);                /* seed 003 eq. 10 */
+    double phi = sb_wrap360(SB_AZIMUTH_SLOPE * meas + SB_AZIMUTH_OFFSET_DEG); /* seed 003 eq. 11 */
+    double theta = ZENITH_EXPRESSION;
+    if (theta < 0.0) { theta = -theta; phi = sb_wrap360(phi + 180.0); }
+    *zenith_deg = theta;
+    *azimuth_deg = phi;
+}
+"""
+
+_PHYSICAL_BODY = """\
+/* Spot centre [px] -> sun direction in the body frame [deg]: inverse of the physical pinhole model
+   (pinhole, air gap, cover glass with Snell refraction, tilted and rotated detector). */
+static inline void sunbench_sun_direction(double x_px, double y_px, double *zenith_deg, double *azimuth_deg) {
+    double ux = -(x_px - SB_X0_PX) * SB_PIXEL_PITCH_MM;
+    double uy = -SB_HANDEDNESS * (y_px - SB_Y0_PX) * SB_PIXEL_PITCH_MM;
+    double r = sqrt(ux * ux + uy * uy), n2 = SB_GLASS_INDEX * SB_GLASS_INDEX;
+    double th = atan(r / (SB_GAP_MM + SB_GLASS_MM / SB_GLASS_INDEX));
+    for (int i = 0; i < 8; ++i) {  /* Newton on r = g tan(th) + t tan(asin(sin(th) / n)) */
+        double s = sin(th), c = cos(th), root = sqrt(n2 - s * s);
+        double f = SB_GAP_MM * s / c + SB_GLASS_MM * s / root - r;
+        double df = SB_GAP_MM / (c * c) + SB_GLASS_MM * c * n2 / (root * root * root);
+        th -= f / df;
+        if (th < 0.0) th = 0.0;
+        if (th > 89.9 * SB_RAD) th = 89.9 * SB_RAD;
+    }
+    double k = r > 0.0 ? sin(th) / r : 0.0;
+    double d[3] = {ux * k, uy * k, cos(th)}, s[3];
+    for (int i = 0; i < 3; ++i)
+        s[i] = SB_DETECTOR[i][0] * d[0] + SB_DETECTOR[i][1] * d[1] + SB_DETECTOR[i][2] * d[2];
+    *zenith_deg = atan2(sqrt(s[0] * s[0] + s[1] * s[1]), s[2]) * SB_DEG;
+    *azimuth_deg = sb_wrap360(atan2(s[1], s[0]) * SB_DEG);
+}
+"""
+
+
+def _seed003_constants(cal: Seed003Calibration) -> list[str]:
+    return [
+        f"static const double SB_X0_PX = {_num(cal.x0_px)};",
+        f"static const double SB_Y0_PX = {_num(cal.y0_px)};",
+        f"static const double SB_RADIUS_SCALE_PX = {_num(cal.radius_scale_px)};",
+        f"static const double SB_ZENITH_COEF[7] = {_array(cal.zenith_coefficients)};",
+        f"static const double SB_AZIMUTH_SLOPE = {_num(cal.azimuth_slope)};",
+        f"static const double SB_AZIMUTH_OFFSET_DEG = {_num(cal.azimuth_offset_deg)};",
+    ]
+
+
+def _seed003_header(cal: Seed003Calibration) -> tuple[list[str], str]:
+    constants = _seed003_constants(cal)
+    zenith = "sb_poly6(SB_ZENITH_COEF, r / SB_RADIUS_SCALE_PX)"
+    if isinstance(cal, Seed003TiltCalibration):
+        tilt, tilt_azimuth = combined_tilt(cal.tilt_x_deg, cal.tilt_y_deg)  # seed 003 eq. 14
+        constants += [f"static const double SB_TILT_DEG = {_num(tilt)};  /* theta' of eq. 14 */",
+                      f"static const double SB_TILT_AZIMUTH_DEG = {_num(tilt_azimuth)};  /* phi' of eq. 14 */"]
+        zenith += (" + asin(sin(SB_TILT_DEG * SB_RAD) * cos((phi - SB_TILT_AZIMUTH_DEG) * SB_RAD)) * SB_DEG"
+                   "  /* eqs. 15-16 */")
+    if isinstance(cal, Seed003SectorCalibration):
+        rows = [_array(c if len(c) else cal.zenith_coefficients) for c in cal.sector_coefficients]
+        constants.append("static const double SB_SECTOR_COEF[8][7] = {\n    " + ",\n    ".join(rows) + "};")
+        zenith = "sb_poly6(SB_SECTOR_COEF[((int)floor(phi / 45.0)) % 8], r / SB_RADIUS_SCALE_PX)  /* §4.5 */"
+    return constants, _SEED003_BODY.replace("ZENITH_EXPRESSION", zenith)
+
+
+def _physical_header(cal: PhysicalCalibration) -> tuple[list[str], str]:
+    m = detector_rotation(cal.tilt_x_deg, cal.tilt_y_deg, cal.rotation_deg)
+    constants = [
+        f"static const double SB_X0_PX = {_num(cal.x0_px)};",
+        f"static const double SB_Y0_PX = {_num(cal.y0_px)};",
+        f"static const double SB_GAP_MM = {_num(cal.gap_mm)};",
+        f"static const double SB_GLASS_MM = {_num(cal.glass_mm)};",
+        f"static const double SB_GLASS_INDEX = {_num(cal.glass_index)};",
+        f"static const double SB_PIXEL_PITCH_MM = {_num(cal.pixel_pitch_mm)};",
+        f"static const double SB_HANDEDNESS = {'-1.0' if cal.mirrored else '1.0'};",
+        f"/* detector tilt alpha = {cal.tilt_x_deg!r} deg, beta = {cal.tilt_y_deg!r} deg, "
+        f"in-plane rotation = {cal.rotation_deg!r} deg */",
+        "static const double SB_DETECTOR[3][3] = {\n    " + ",\n    ".join(_array(row) for row in m) + "};",
+    ]
+    return constants, _PHYSICAL_BODY
+
+
+def c_header(calibration: Calibration, *, sensor_id: str | None = None) -> str:
+    """C header text for `calibration`, defining ``sunbench_sun_direction(x_px, y_px, &zenith, &azimuth)``."""
+    if isinstance(calibration, PhysicalCalibration):
+        constants, body = _physical_header(calibration)
+    elif isinstance(calibration, Seed003Calibration):
+        constants, body = _seed003_header(calibration)
+    else:
+        raise TypeError(f"no C export for {type(calibration).__name__}")
+    tag = re.sub(r"[^A-Za-z0-9]", "_", sensor_id or "SENSOR").upper()
+    guard = f"SUNBENCH_CALIBRATION_{tag}_H"
+    lines = [
+        f"/* sunbench calibration: method {calibration.method}, sensor {sensor_id or 'unknown'}.",
+        "   Generated by `sunbench`; do not edit. Angles in degrees, spot centres in pixels",
+        "   (x right, y down, origin at the centre of pixel 0,0); body frame +z = boresight. */",
+        f"#ifndef {guard}",
+        f"#define {guard}",
+        "",
+        _PRELUDE,
+        f'#define SB_CALIBRATION_METHOD "{calibration.method}"',
+        *constants,
+        "",
+        body,
+        f"#endif /* {guard} */",
+        "",
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,82 @@
+"""What every calibration model is: fitted from bench data, applied to spot centres, saved as JSON."""
+
+from __future__ import annotations
+
+import dataclasses
+from abc import ABC, abstractmethod
+from typing import ClassVar
+
+import numpy as np
+
+from ..data import BenchData
+from ..design import DEFAULT_SENSOR, SensorDesign
+from ..errors import CalibrationFormatError
+
+#: Identifies a sunbench calibration file; bumped when the meaning of a field changes.
+FORMAT = "sunbench.calibration"
+FORMAT_VERSION = 1
+
+
+class Calibration(ABC):
+    """A fitted calibration: spot centre (x_px, y_px) → sun direction (zenith_deg, azimuth_deg).
+
+    Subclasses are frozen dataclasses whose fields are the calibration parameters; `method` names the
+    model and `min_points` is the least data it can be fitted from.
+    """
+
+    method: ClassVar[str]
+    min_points: ClassVar[int]
+
+    @classmethod
+    @abstractmethod
+    def fit(cls, data: BenchData, design: SensorDesign = DEFAULT_SENSOR) -> "Calibration":
+        """Fit the model to bench data; raises :class:`~calibration.errors.InsufficientDataError`."""
+
+    @abstractmethod
+    def apply(self, x_px, y_px) -> tuple[np.ndarray, np.ndarray]:
+        """Sun direction (zenith_deg, azimuth_deg) in the body frame for spot centres [°]."""
+
+    def parameters(self) -> dict:
+        """The fitted parameters as plain JSON-able values."""
+        return {f.name: _plain(getattr(self, f.name)) for f in dataclasses.fields(self)}
+
+    def to_dict(self) -> dict:
+        """The versioned JSON document of this calibration."""
+        return {"format": FORMAT, "version": FORMAT_VERSION, "method": self.method,
+                "parameters": self.parameters()}
+
+    @classmethod
+    def from_parameters(cls, parameters: dict) -> "Calibration":
+        names = {f.name for f in dataclasses.fields(cls)}
+        required = {f.name for f in dataclasses.fields(cls)
+                    if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING}
+        missing = sorted(required - set(parameters))
+        unknown = sorted(set(parameters) - names)
+        if missing or unknown:
+            raise CalibrationFormatError(
+                f"{cls.method} calibration: missing parameters {missing}, unknown parameters {unknown}")
+        try:
+            return cls(**{k: _restore(v) for k, v in parameters.items()})
+        except (TypeError, ValueError) as exc:
+            raise CalibrationFormatError(f"{cls.method} calibration: invalid parameters ({exc})") from exc
+
+
+def _plain(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if dataclasses.is_dataclass(value):
+        return _plain(dataclasses.asdict(value))
+    return value
+
+
+def _restore(value):
+    """JSON lists back to the tuples the frozen dataclasses hold (so they stay hashable and immutable)."""
+    if isinstance(value, list):
+        return tuple(_restore(v) for v in value)
+    return value

@@ -1,0 +1,188 @@
+"""Physical forward and inverse model of a pinhole sun sensor with a cover glass and a tilted detector.
+
+The sun's light passes a point-like pinhole, crosses an air gap g, then a plane glass plate of
+thickness t and index n lying on the detector, and lands on the pixels. The detector (with its glass)
+may be tilted and rotated in-plane against the housing, which defines the body frame.
+
+In the detector frame, for a ray at incidence θ_d and in-plane direction u (unit), the spot lies at
+
+    spot = c − k(θ_d) · sin θ_d · u / p,      k(θ) = g / cos θ + t / (n cos θ_g),   sin θ_g = sin θ / n
+
+where c = (x0, y0) is the foot of the perpendicular from the pinhole on the detector [px] and p the pixel
+pitch. The radial distance is r = g tan θ + t tan θ_g (Snell refraction in the glass). With t = 0 this is
+the ideal pinhole of seed 003 eq. 6, θ = arctan(r / L).
+
+The detector orientation in the body frame is M = R_y(α) · R_x(−β) · R_z(ψ): an in-plane rotation ψ,
+then the tilt α that tips the detector normal toward azimuth 0° and β toward azimuth 90° (the α, β
+convention of seed 003 eqs. 14–15). A body-frame direction s is seen in the detector frame as Mᵀ s.
+
+References
+----------
+seed 003, eqs. 6–7 (ideal pinhole), eqs. 14–15 (tilt convention), §4.4 (detector tilt and rotation);
+research note anchors-sunsensors §2.2 (refraction in glass between pinhole and pixels).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .geometry import direction_vector, zenith_azimuth_from_vector
+
+
+@dataclass(frozen=True)
+class PinholeBuild:
+    """Build parameters of one pinhole sun sensor.
+
+    Attributes
+    ----------
+    x0_px, y0_px : float
+        Foot of the perpendicular from the pinhole on the detector [px].
+    gap_mm : float
+        Air gap between the pinhole and the glass (or the pixels when there is no glass) [mm].
+    glass_mm : float
+        Thickness of the glass between pinhole and pixels [mm]; 0 for none.
+    glass_index : float
+        Refractive index of that glass [unitless].
+    tilt_x_deg, tilt_y_deg : float
+        Detector tilt α toward azimuth 0° and β toward azimuth 90° [°].
+    rotation_deg : float
+        In-plane rotation ψ of the detector [°].
+    mirrored : bool
+        True when the detector rows run against the body +y axis (a mirrored read-out).
+    """
+
+    x0_px: float = 319.5
+    y0_px: float = 239.5
+    gap_mm: float = 1.37
+    glass_mm: float = 0.0
+    glass_index: float = 1.52
+    tilt_x_deg: float = 0.0
+    tilt_y_deg: float = 0.0
+    rotation_deg: float = 0.0
+    mirrored: bool = False
+
+    def __post_init__(self) -> None:
+        if not self.gap_mm > 0:
+            raise ValueError(f"`gap_mm` must be positive, got {self.gap_mm}")
+        if not self.glass_mm >= 0:
+            raise ValueError(f"`glass_mm` must be >= 0, got {self.glass_mm}")
+        if not self.glass_index >= 1:
+            raise ValueError(f"`glass_index` must be >= 1, got {self.glass_index}")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def detector_rotation(tilt_x_deg: float, tilt_y_deg: float, rotation_deg: float) -> np.ndarray:
+    """Orientation M of the detector in the body frame (columns: detector axes) [unitless, 3×3].
+
+    References
+    ----------
+    seed 003, §4.4 and eqs. 14–15 (α along azimuth 0°, β along 90°, in-plane rotation φ0).
+    """
+    a, b, p = np.radians([tilt_x_deg, tilt_y_deg, rotation_deg])
+    ry = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(b), np.sin(b)], [0.0, -np.sin(b), np.cos(b)]])  # R_x(−β)
+    rz = np.array([[np.cos(p), -np.sin(p), 0.0], [np.sin(p), np.cos(p), 0.0], [0.0, 0.0, 1.0]])
+    return ry @ rx @ rz
+
+
+def radial_offset_mm(incidence_deg, gap_mm, glass_mm, glass_index) -> np.ndarray:
+    """Distance r of the spot from the pinhole's foot for a ray at incidence θ_d [mm].
+
+    .. math:: r = g \\tan θ + t \\tan(\\arcsin(\\sin θ / n))
+
+    References
+    ----------
+    seed 003, eq. 6 (t = 0); Snell's law for the glass term (research note anchors-sunsensors §2.2).
+    """
+    th = np.radians(incidence_deg)
+    s = np.sin(th)
+    return gap_mm * np.tan(th) + glass_mm * s / np.sqrt(glass_index**2 - s**2)
+
+
+def incidence_from_radial_offset(r_mm, gap_mm, glass_mm, glass_index, *, iterations: int = 8) -> np.ndarray:
+    """Invert :func:`radial_offset_mm`: incidence θ_d for a radial distance r [°].
+
+    Newton's method from the paraxial guess θ = arctan(r / (g + t/n)), which lies at or below the root;
+    r(θ) is increasing and convex on [0°, 90°), so after the first step the iteration converges
+    monotonically from above (8 steps reach machine precision for the sensors here).
+
+    References
+    ----------
+    seed 003, eq. 6 (t = 0, where the first guess is already exact).
+    """
+    r = np.asarray(r_mm, dtype=float)
+    n2 = glass_index**2
+    th = np.arctan(r / (gap_mm + glass_mm / glass_index))
+    for _ in range(iterations):
+        s, c = np.sin(th), np.cos(th)
+        root = np.sqrt(n2 - s**2)
+        f = gap_mm * s / c + glass_mm * s / root - r
+        df = gap_mm / c**2 + glass_mm * c * n2 / root**3
+        th = np.clip(th - f / df, 0.0, np.radians(89.9))
+    return np.degrees(th)
+
+
+def _spot_scale_mm(cos_incidence, gap_mm, glass_mm, glass_index):
+    """k(θ) = g / cos θ + t / (n cos θ_g): offset per unit of sin θ, finite at θ = 0 [mm]."""
+    sin2 = 1.0 - cos_incidence**2
+    cos_glass = np.sqrt(1.0 - sin2 / glass_index**2)
+    return gap_mm / cos_incidence + glass_mm / (glass_index * cos_glass)
+
+
+def spot_from_direction(zenith_deg, azimuth_deg, build: PinholeBuild, pixel_pitch_mm: float):
+    """Where the spot lands for a sun direction given in the body frame.
+
+    Parameters
+    ----------
+    zenith_deg, azimuth_deg : numeric
+        Sun direction in the body frame [°].
+    build : PinholeBuild
+        Build parameters of the sensor.
+    pixel_pitch_mm : float
+        Pixel pitch [mm].
+
+    Returns
+    -------
+    x_px, y_px : ndarray
+        Spot centre [px].
+
+    References
+    ----------
+    seed 003, eqs. 6–7 and §4.4; see the module docstring for the model.
+    """
+    s = direction_vector(zenith_deg, azimuth_deg)
+    return spot_from_vectors(s, build, pixel_pitch_mm)
+
+
+def spot_from_vectors(s: np.ndarray, build: PinholeBuild, pixel_pitch_mm: float):
+    """:func:`spot_from_direction` for unit vectors s of shape (..., 3) [px]."""
+    m = detector_rotation(build.tilt_x_deg, build.tilt_y_deg, build.rotation_deg)
+    sd = s @ m  # rows: Mᵀ s
+    k = _spot_scale_mm(sd[..., 2], build.gap_mm, build.glass_mm, build.glass_index) / pixel_pitch_mm
+    handed = -1.0 if build.mirrored else 1.0
+    # the pinhole inverts the image: the spot moves away from the sun's azimuth
+    return build.x0_px - k * sd[..., 0], build.y0_px - handed * k * sd[..., 1]
+
+
+def direction_from_spot(x_px, y_px, build: PinholeBuild, pixel_pitch_mm: float):
+    """Sun direction in the body frame for a spot centre: the inverse of :func:`spot_from_direction`.
+
+    Returns
+    -------
+    zenith_deg, azimuth_deg : ndarray
+        [°], azimuth in [0, 360).
+    """
+    handed = -1.0 if build.mirrored else 1.0
+    ux = -(np.asarray(x_px, dtype=float) - build.x0_px) * pixel_pitch_mm
+    uy = -handed * (np.asarray(y_px, dtype=float) - build.y0_px) * pixel_pitch_mm
+    r = np.hypot(ux, uy)
+    th = np.radians(incidence_from_radial_offset(r, build.gap_mm, build.glass_mm, build.glass_index))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.where(r > 0, np.sin(th) / r, 0.0)
+    sd = np.stack([ux * scale, uy * scale, np.cos(th)], axis=-1)
+    m = detector_rotation(build.tilt_x_deg, build.tilt_y_deg, build.rotation_deg)
+    return zenith_azimuth_from_vector(sd @ m.T)
