@@ -14,6 +14,7 @@ from typing import Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from calibration.design import DEFAULT_BENCH, DEFAULT_SENSOR, BenchGeometry
@@ -51,10 +52,11 @@ def _user_errors(command):
         try:
             return command(*args, **kwargs)
         except (DataFileError, CalibrationError) as exc:
-            err.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
+            err.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
             raise typer.Exit(2) from None
         except OSError as exc:
-            err.print(f"[bold red]error:[/] {exc.filename or ''}: {exc.strerror}", highlight=False)
+            err.print(f"[bold red]error:[/] {escape(str(exc.filename or ''))}: {escape(str(exc.strerror))}",
+                      highlight=False, soft_wrap=True)
             raise typer.Exit(2) from None
 
     return wrapper
