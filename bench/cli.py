@@ -102,9 +102,9 @@ def physical_table(cal: PhysicalCalibration, truth: PinholeBuild | None = None) 
     return table
 
 
-def _fit_and_report(data, method: Optional[str]) -> tuple[Calibration, list[MethodReport]]:
+def _fit_and_report(data, method: Optional[str], fit_options=None) -> tuple[Calibration, list[MethodReport]]:
     with err.status("fitting and cross-validating every method…"):
-        reports = compare_methods(data)
+        reports = compare_methods(data, fit_options=fit_options)
     chosen = best_method(reports).method if method is None else method
     report = next(r for r in reports if r.method == chosen)
     if report.calibration is None:
@@ -126,29 +126,36 @@ def fit_cmos(
                                                                         "distance d of seed 003 eq. 8 [mm]."),
     source_distance_mm: float = typer.Option(DEFAULT_BENCH.source_distance_mm,
                                              help="Stage angles only: sensor-to-simulator distance L [mm]."),
+    glass_index: float = typer.Option(1.52, help="physical: refractive index of the glass between pinhole and "
+                                                 "pixels (BK7/D263 1.52, sapphire 1.77, fused silica 1.46)."),
+    fit_index: bool = typer.Option(False, "--fit-index", help="physical: fit the glass index too (it is "
+                                                              "strongly correlated with the thickness)."),
 ) -> None:
     """Fit a CMOS pinhole sensor's calibration; print the accuracy of every method side by side."""
     if method is not None and method not in METHODS:
         raise CalibrationError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
+    if not 1.0 <= glass_index <= 3.0:
+        raise CalibrationError(f"--glass-index must lie in [1, 3], got {glass_index}")
     try:
         bench = BenchGeometry(lever_arm_mm=lever_arm_mm, source_distance_mm=source_distance_mm)
     except ValueError as exc:
         raise CalibrationError(str(exc)) from None
     data = read_bench_csv(data_csv, bench=bench, sensor_id=sensor)
     try:
-        calibration, reports = _fit_and_report(data, method)
+        calibration, reports = _fit_and_report(
+            data, method, {"physical": {"glass_index": glass_index, "fit_index": fit_index}})
     except CalibrationError as exc:
         raise DataFileError(data_csv, str(exc), column=getattr(exc, "column", None)) from None
     if isinstance(calibration, PhysicalCalibration):
         out.print(physical_table(calibration))
-    out.print(f"{len(data)} points from {data_csv}; method [bold]{calibration.method}[/]")
+    out.print(f"{len(data)} points from {escape(str(data_csv))}; method [bold]{calibration.method}[/]")
     if output:
         write_calibration(output, calibration_document(calibration, sensor_id=data.sensor_id, source=str(data_csv),
                                                        reports=reports, software=f"sunbench {_version()}"))
-        out.print(f"calibration written to {output}")
+        out.print(f"calibration written to {escape(str(output))}")
     if header:
         _write_text(header, c_header(calibration, sensor_id=data.sensor_id))
-        out.print(f"C header written to {header}")
+        out.print(f"C header written to {escape(str(header))}")
 
 
 def _write_text(path: Path, text: str) -> None:
@@ -168,7 +175,7 @@ def apply_calibration(
     table, x, y = read_spots_csv(spots_csv)
     zenith, azimuth = calibration.apply(x, y)
     write_applied_csv(output, table, zenith, azimuth)
-    out.print(f"{len(x)} directions written to {output} (method {calibration.method})")
+    out.print(f"{len(x)} directions written to {escape(str(output))} (method {calibration.method})")
 
 
 @app.command("header")
@@ -180,7 +187,7 @@ def export_header(
     """Export a calibration as a C header with `sunbench_sun_direction()` for the sensor's MCU."""
     calibration, document = read_calibration(calibration_json)
     _write_text(output, c_header(calibration, sensor_id=document.get("sensor_id")))
-    out.print(f"C header written to {output}")
+    out.print(f"C header written to {escape(str(output))}")
 
 
 @app.command("demo")
@@ -207,7 +214,7 @@ def demo(
                           calibration_document(calibration, sensor_id=data.sensor_id, source="sunbench demo",
                                                reports=reports, software=f"sunbench {_version()}"))
         _write_text(output_dir / "calibration.h", c_header(calibration, sensor_id=data.sensor_id))
-        out.print(f"bench data, calibration and C header written to {output_dir}/")
+        out.print(f"bench data, calibration and C header written to {escape(str(output_dir))}/")
 
 
 def main() -> None:  # pragma: no cover - entry point

@@ -87,8 +87,10 @@ def accuracy_metrics(data: BenchData, zenith_deg, azimuth_deg) -> AccuracyMetric
     )
 
 
-def holdout_predictions(method: str, data: BenchData, design: SensorDesign = DEFAULT_SENSOR):
+def holdout_predictions(method: str, data: BenchData, design: SensorDesign = DEFAULT_SENSOR, **fit_options):
     """Leave-one-azimuth-out predictions of every off-normal point.
+
+    `fit_options` go to the method's ``fit`` (for example ``glass_index`` for ``physical``).
 
     Returns
     -------
@@ -105,7 +107,7 @@ def holdout_predictions(method: str, data: BenchData, design: SensorDesign = DEF
     azimuth = np.full(len(data), np.nan)
     for label in labels:
         out = groups == label
-        calibration = METHODS[method].fit(data.subset(~out), design)
+        calibration = METHODS[method].fit(data.subset(~out), design, **fit_options)
         zenith[out], azimuth[out] = calibration.apply(data.x_px[out], data.y_px[out])
     keep = groups >= 0
     return data.subset(keep), zenith[keep], azimuth[keep]
@@ -140,7 +142,8 @@ class MethodReport:
                 "heldout": self.heldout.to_dict() if self.heldout else None}
 
 
-def evaluate_method(method: str, data: BenchData, design: SensorDesign = DEFAULT_SENSOR) -> MethodReport:
+def evaluate_method(method: str, data: BenchData, design: SensorDesign = DEFAULT_SENSOR,
+                    **fit_options) -> MethodReport:
     """Fit one method to all the data and evaluate it at the nodes and held out.
 
     The repeats of each bench direction are averaged first (:meth:`BenchData.direction_means`), as seed 003
@@ -148,20 +151,24 @@ def evaluate_method(method: str, data: BenchData, design: SensorDesign = DEFAULT
     """
     data = data.direction_means()
     try:
-        calibration = METHODS[method].fit(data, design)
+        calibration = METHODS[method].fit(data, design, **fit_options)
     except CalibrationError as exc:
         return MethodReport(method, None, None, None, str(exc))
     fitted = accuracy_metrics(data, *calibration.apply(data.x_px, data.y_px))
     try:
-        evaluated, zenith, azimuth = holdout_predictions(method, data, design)
+        evaluated, zenith, azimuth = holdout_predictions(method, data, design, **fit_options)
         heldout = accuracy_metrics(evaluated, zenith, azimuth)
     except CalibrationError as exc:
         return MethodReport(method, calibration, fitted, None, f"no held-out figure: {exc}")
     return MethodReport(method, calibration, fitted, heldout)
 
 
-def compare_methods(data: BenchData, methods=None, design: SensorDesign = DEFAULT_SENSOR) -> list[MethodReport]:
+def compare_methods(data: BenchData, methods=None, design: SensorDesign = DEFAULT_SENSOR,
+                    fit_options: dict[str, dict] | None = None) -> list[MethodReport]:
     """Evaluate every method (default: all of :data:`calibration.models.METHODS`) on the same data.
+
+    `fit_options` maps a method name to keyword arguments of its ``fit``, e.g.
+    ``{"physical": {"glass_index": 1.77, "fit_index": True}}``.
 
     Data that no method could fit (one azimuth, fewer bench directions than the least any method needs) are
     refused up front with one :class:`~calibration.errors.InsufficientDataError`.
@@ -172,7 +179,8 @@ def compare_methods(data: BenchData, methods=None, design: SensorDesign = DEFAUL
         raise InsufficientDataError(f"too few bench directions, {len(means)} (from {len(data)} frames); "
                                     f"a calibration needs at least {need}")
     means.require_spread(min_points=need, method="calibration")
-    return [evaluate_method(m, data, design) for m in (methods or list(METHODS))]
+    fit_options = fit_options or {}
+    return [evaluate_method(m, data, design, **fit_options.get(m, {})) for m in (methods or list(METHODS))]
 
 
 def best_method(reports: list[MethodReport]) -> MethodReport:

@@ -21,7 +21,7 @@ from scipy.optimize import least_squares
 
 from ..data import BenchData
 from ..design import DEFAULT_SENSOR, SensorDesign
-from ..errors import FitError
+from ..errors import CalibrationError, FitError
 from ..geometry import direction_vector, wrap_deg
 from ..pinhole import PinholeBuild, direction_from_spot, spot_from_vectors
 from .base import Calibration
@@ -122,6 +122,8 @@ class PhysicalCalibration(Calibration):
         fit_index : bool
             Fit the index as well.
         """
+        if not 1.0 <= glass_index <= 3.0:
+            raise CalibrationError(f"physical: `glass_index` must lie in [1, 3], got {glass_index}")
         data.require_spread(min_points=cls.min_points, method=cls.method)
         start = _initial_build(data, design, glass_index)
         names = FITTED + (("glass_index",) if fit_index else ())

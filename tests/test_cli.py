@@ -1,0 +1,334 @@
+"""The `sunbench` command line: fit, apply, header, demo, and how it refuses bad input."""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from bench.cli import app
+from bench.datafile import read_calibration, write_bench_csv
+from calibration.geometry import angular_error_deg
+from calibration.models import METHODS
+from calibration.synthetic import synthetic_bench_data
+
+# no colour codes, wide enough that nothing wraps
+runner = CliRunner(env={"COLUMNS": "160", "FORCE_COLOR": None, "NO_COLOR": "1", "TERM": "dumb"})
+
+ALL_METHODS = ("seed003", "seed003-tilt", "seed003-sector", "physical")
+
+
+def run(*args: str):
+    result = runner.invoke(app, [str(a) for a in args])
+    assert result.exception is None or isinstance(result.exception, SystemExit), result.exception
+    return result
+
+
+def method_rows(stdout: str) -> dict[str, bool]:
+    """Method name → chosen ('*'), from the rows of the metrics table."""
+    rows = {}
+    for line in stdout.splitlines():
+        m = re.match(r"^\W*(seed003-tilt|seed003-sector|seed003|physical)( \*)?\s", line)
+        if m:
+            rows[m.group(1)] = bool(m.group(2))
+    return rows
+
+
+def assert_user_error(result, *fragments: str) -> str:
+    """Exit code 2, one error line naming the problem, no traceback."""
+    assert result.exit_code == 2, (result.exit_code, result.output)
+    assert result.exception is None or isinstance(result.exception, SystemExit)
+    message = result.stderr
+    assert message.startswith("error:"), message
+    assert "Traceback" not in result.output
+    flat = " ".join(message.split())
+    for fragment in fragments:
+        assert fragment in flat, (fragment, flat)
+    assert result.stdout == ""
+    return flat
+
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("cli")
+
+
+@pytest.fixture(scope="module")
+def bench_csv(workdir) -> Path:
+    path = workdir / "DATA.csv"
+    write_bench_csv(path, synthetic_bench_data(seed=7, sensor_id="SN-0042"))
+    return path
+
+
+@pytest.fixture(scope="module")
+def fitted(workdir, bench_csv):
+    """`fit cmos DATA.csv -o CAL.json --header CAL.h`, run once for the module."""
+    cal, header = workdir / "CAL.json", workdir / "CAL.h"
+    result = run("fit", "cmos", bench_csv, "-o", cal, "--header", header)
+    return result, cal, header
+
+
+# --- fit ----------------------------------------------------------------------------------------------------
+
+def test_fit_prints_every_method_and_marks_the_chosen_one(fitted):
+    result, _, _ = fitted
+    assert result.exit_code == 0, result.output
+    rows = method_rows(result.stdout)
+    assert set(rows) == set(ALL_METHODS), result.stdout
+    assert [m for m, chosen in rows.items() if chosen] == ["physical"]
+    assert "* = chosen" in result.stdout
+    assert "264 points from" in result.stdout and "method physical" in result.stdout
+    assert "Physical model: fitted build" in result.stdout
+    assert "Traceback" not in result.output
+
+
+def test_fit_writes_calibration_json(fitted):
+    result, cal, _ = fitted
+    document = json.loads(cal.read_text())
+    assert document["format"] == "sunbench.calibration"
+    assert document["version"] == 1
+    assert document["method"] == "physical"
+    assert document["sensor_id"] == "SN-0042"
+    assert document["source"].endswith("DATA.csv")
+    assert set(document["metrics"]) == set(ALL_METHODS)
+    for method, metrics in document["metrics"].items():
+        assert metrics["method"] == method
+        assert metrics["fitted"]["rms_vector_deg"] >= 0
+        assert metrics["heldout"]["rms_vector_deg"] >= 0
+    # the chosen method really is the best held out
+    best = min(document["metrics"], key=lambda m: document["metrics"][m]["heldout"]["rms_vector_deg"])
+    assert best == "physical"
+    calibration, _ = read_calibration(cal)
+    assert calibration.method == "physical"
+
+
+def test_fit_writes_c_header(fitted):
+    _, _, header = fitted
+    text = header.read_text()
+    assert "sunbench_sun_direction" in text
+    assert "SN-0042" in text
+
+
+def test_fit_with_method_seed003(workdir, bench_csv):
+    cal = workdir / "seed003.json"
+    result = run("fit", "cmos", bench_csv, "--method", "seed003", "-o", cal)
+    assert result.exit_code == 0, result.output
+    rows = method_rows(result.stdout)
+    assert set(rows) == set(ALL_METHODS)
+    assert [m for m, chosen in rows.items() if chosen] == ["seed003"]
+    document = json.loads(cal.read_text())
+    assert document["method"] == "seed003"
+    calibration, _ = read_calibration(cal)
+    assert type(calibration) is METHODS["seed003"]
+
+
+def test_fit_one_sensor_of_a_batch(workdir):
+    a, b = synthetic_bench_data(seed=1, sensor_id="SN-A"), synthetic_bench_data(seed=2, sensor_id="SN-B")
+    write_bench_csv(workdir / "a.csv", a)
+    write_bench_csv(workdir / "b.csv", b)
+    batch = workdir / "batch.csv"
+    batch.write_text((workdir / "a.csv").read_text()
+                     + "".join((workdir / "b.csv").read_text().splitlines(keepends=True)[1:]))
+    assert_user_error(run("fit", "cmos", batch), str(batch), "2 sensors", "--sensor")
+    cal = workdir / "b.json"
+    result = run("fit", "cmos", batch, "--sensor", "SN-B", "--method", "seed003", "-o", cal)
+    assert result.exit_code == 0, result.output
+    assert f"{len(b)} points" in result.stdout
+    assert json.loads(cal.read_text())["sensor_id"] == "SN-B"
+
+
+# --- apply / header -----------------------------------------------------------------------------------------
+
+def test_apply_recovers_the_true_directions(workdir, fitted, bench_csv):
+    _, cal, _ = fitted
+    out = workdir / "OUT.csv"
+    result = run("apply", cal, bench_csv, "-o", out)
+    assert result.exit_code == 0, result.output
+    assert "264 directions" in result.stdout
+
+    with bench_csv.open() as fh:
+        original = list(csv.reader(fh))
+    with out.open() as fh:
+        applied = list(csv.reader(fh))
+    assert applied[0] == ["input_zenith_deg", "input_azimuth_deg", "x_px", "y_px", "repeat", "sensor_id",
+                          "zenith_deg", "azimuth_deg"]
+    assert len(applied) == len(original)
+    for a, o in zip(applied[1:], original[1:]):
+        assert a[:6] == o  # input cells are copied verbatim
+
+    cols = {name: j for j, name in enumerate(applied[0])}
+    values = lambda name: np.array([float(r[cols[name]]) for r in applied[1:]])  # noqa: E731
+    error = angular_error_deg(values("input_zenith_deg"), values("input_azimuth_deg"),
+                              values("zenith_deg"), values("azimuth_deg"))
+    assert error.max() < 0.05, error.max()
+    assert error.mean() > 0  # a real comparison, not the input echoed back
+
+
+def test_apply_to_a_plain_spot_file(workdir, fitted):
+    _, cal, _ = fitted
+    calibration, _ = read_calibration(cal)
+    spots = workdir / "spots.csv"
+    normal = synthetic_bench_data(zenith_deg=[0.0], azimuth_deg=[0.0], noise_px=0.0)  # spot at normal incidence
+    x_normal, y_normal = float(normal.x_px[0]), float(normal.y_px[0])
+    spots.write_text(f"frame,x_px,y_px\nf1,{x_normal!r},{y_normal!r}\nf2,400.0,300.0\n")
+    out = workdir / "spots-out.csv"
+    result = run("apply", cal, spots, "--output", out)
+    assert result.exit_code == 0, result.output
+    with out.open() as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0] == ["frame", "x_px", "y_px", "zenith_deg", "azimuth_deg"]
+    assert [r[0] for r in rows[1:]] == ["f1", "f2"]
+    z, a = calibration.apply(np.array([x_normal, 400.0]), np.array([y_normal, 300.0]))
+    np.testing.assert_allclose([float(r[3]) for r in rows[1:]], z, atol=1e-6)
+    np.testing.assert_allclose([float(r[4]) for r in rows[1:]], a, atol=1e-6)
+    assert float(rows[1][3]) < 0.02 and float(rows[2][3]) > 20.0
+
+
+def test_header_command(workdir, fitted):
+    _, cal, _ = fitted
+    out = workdir / "sub" / "X.h"
+    result = run("header", cal, "-o", out)
+    assert result.exit_code == 0, result.output
+    text = out.read_text()
+    assert "sunbench_sun_direction" in text and "SN-0042" in text
+
+
+# --- demo ---------------------------------------------------------------------------------------------------
+
+def test_demo_writes_files_that_fit_again(tmp_path):
+    result = run("demo", "--out", tmp_path)
+    assert result.exit_code == 0, result.output
+    assert set(method_rows(result.stdout)) == set(ALL_METHODS)
+    assert "truth" in result.stdout
+    for name in ("bench-data.csv", "calibration.json", "calibration.h"):
+        assert (tmp_path / name).is_file(), name
+    assert json.loads((tmp_path / "calibration.json").read_text())["method"] == "physical"
+    assert "sunbench_sun_direction" in (tmp_path / "calibration.h").read_text()
+
+    refit = run("fit", "cmos", tmp_path / "bench-data.csv", "-m", "physical", "-o", tmp_path / "refit.json")
+    assert refit.exit_code == 0, refit.output
+    first = json.loads((tmp_path / "calibration.json").read_text())["parameters"]
+    second = json.loads((tmp_path / "refit.json").read_text())["parameters"]
+    for name in ("x0_px", "y0_px", "gap_mm", "rotation_deg"):
+        assert second[name] == pytest.approx(first[name], rel=1e-9, abs=1e-12), name
+
+
+# --- bad input ----------------------------------------------------------------------------------------------
+
+HEADER = "zenith_deg,azimuth_deg,x_px,y_px"
+
+
+def _csv(tmp_path, text: str, name: str = "bad.csv") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_missing_column(tmp_path):
+    path = _csv(tmp_path, "zenith_deg,azimuth_deg,x_px\n0,0,1\n")
+    assert_user_error(run("fit", "cmos", path), str(path), "missing column", "y_px")
+
+
+def test_non_numeric_cell(tmp_path, bench_csv):
+    lines = bench_csv.read_text().splitlines()
+    lines[5] = lines[5].replace(lines[5].split(",")[3], "12,5x", 1).replace("12,5x", "12;5x")
+    path = _csv(tmp_path, "\n".join(lines) + "\n")
+    assert_user_error(run("fit", "cmos", path), str(path), "row 5 (line 6)", "column 'y_px'", "'12;5x' is not a number")
+
+
+def test_nan_cell(tmp_path):
+    path = _csv(tmp_path, f"{HEADER}\n0,0,1,1\n10,45,nan,2\n")
+    assert_user_error(run("fit", "cmos", path), str(path), "row 2 (line 3)", "column 'x_px'", "not a finite number")
+
+
+def test_too_few_points(tmp_path):
+    data = synthetic_bench_data(zenith_deg=[0, 10, 10, 20, 20], azimuth_deg=[0, 0, 90, 0, 90])
+    path = tmp_path / "few.csv"
+    write_bench_csv(path, data)
+    assert_user_error(run("fit", "cmos", path), str(path), "too few bench directions, 5")
+
+
+def test_all_points_at_one_azimuth(tmp_path):
+    zenith = np.arange(0.0, 61.0, 5.0)
+    data = synthetic_bench_data(zenith_deg=zenith, azimuth_deg=np.full(zenith.size, 45.0))
+    path = tmp_path / "one-azimuth.csv"
+    write_bench_csv(path, data)
+    assert_user_error(run("fit", "cmos", path), str(path), "column 'azimuth_deg'", "one azimuth (45°)")
+
+
+def test_calibration_of_another_version(tmp_path, fitted, bench_csv):
+    _, cal, _ = fitted
+    document = json.loads(cal.read_text())
+    document["version"] = 99
+    bad = tmp_path / "v99.json"
+    bad.write_text(json.dumps(document))
+    assert_user_error(run("apply", bad, bench_csv, "-o", tmp_path / "o.csv"), str(bad), "version 99")
+    assert not (tmp_path / "o.csv").exists()
+    assert_user_error(run("header", bad, "-o", tmp_path / "o.h"), str(bad), "version 99")
+    assert not (tmp_path / "o.h").exists()
+
+
+@pytest.mark.parametrize("command", ["fit", "apply-cal", "apply-spots", "header"])
+def test_missing_file(tmp_path, fitted, bench_csv, command):
+    _, cal, _ = fitted
+    missing = tmp_path / "nowhere.csv"
+    args = {"fit": ["fit", "cmos", missing],
+            "apply-cal": ["apply", missing, bench_csv, "-o", tmp_path / "o.csv"],
+            "apply-spots": ["apply", cal, missing, "-o", tmp_path / "o.csv"],
+            "header": ["header", missing, "-o", tmp_path / "o.h"]}[command]
+    assert_user_error(run(*args), str(missing), "no such file")
+
+
+def test_unknown_method(bench_csv):
+    assert_user_error(run("fit", "cmos", bench_csv, "--method", "magic"), "--method must be one of",
+                      ", ".join(ALL_METHODS), "'magic'")
+
+
+def test_bad_bench_geometry(tmp_path, bench_csv):
+    assert_user_error(run("fit", "cmos", bench_csv, "--source-distance-mm", "-5"), "source_distance_mm")
+
+
+def test_error_text_is_not_read_as_markup(tmp_path):
+    # a cell and a file name with square brackets are shown as they are, and '[/x]' does not crash rich
+    path = _csv(tmp_path, f"{HEADER}\n0,0,[/x],1\n1,0,[bold],1\n", name="run[bold].csv")
+    assert_user_error(run("fit", "cmos", path), "run[bold].csv", "'[/x]' is not a number")
+
+
+# --- the installed console script ---------------------------------------------------------------------------
+
+def test_console_script(tmp_path, fitted):
+    _, cal, _ = fitted
+    script = Path(sys.executable).parent / "sunbench"
+    assert script.is_file()
+    env = {"PATH": str(script.parent), "COLUMNS": "160", "NO_COLOR": "1", "TERM": "dumb"}
+
+    ok = subprocess.run([str(script), "header", str(cal), "-o", str(tmp_path / "s.h")], capture_output=True,
+                        text=True, timeout=60, env=env)
+    assert ok.returncode == 0, ok.stderr
+    assert "sunbench_sun_direction" in (tmp_path / "s.h").read_text()
+
+    bad = _csv(tmp_path, f"{HEADER}\n0,0,1,1\n10,45,abc,2\n")
+    proc = subprocess.run([str(script), "fit", "cmos", str(bad)], capture_output=True, text=True, timeout=60,
+                          env=env)
+    assert proc.returncode == 2, (proc.stdout, proc.stderr)
+    assert "Traceback" not in proc.stderr
+    assert proc.stderr.startswith("error:")
+    flat = " ".join(proc.stderr.split())
+    assert str(bad) in flat and "row 2 (line 3)" in flat and "'abc' is not a number" in flat
+
+
+def test_fit_glass_index_options(workdir, bench_csv):
+    out = workdir / "cal-index.json"
+    result = run("fit", "cmos", bench_csv, "--fit-index", "--glass-index", "1.6", "-o", out)
+    assert result.exit_code == 0, result.output
+    parameters = json.loads(out.read_text())["parameters"]
+    assert "glass_index" in parameters["fitted"]
+    assert abs(parameters["glass_index"] - 1.52) < 5 * parameters["uncertainties"]["glass_index"] + 0.01
+    assert_user_error(run("fit", "cmos", bench_csv, "--glass-index", "0.5"), "--glass-index")
