@@ -175,6 +175,10 @@ def direction_from_spot(x_px, y_px, build: PinholeBuild, pixel_pitch_mm: float):
     -------
     zenith_deg, azimuth_deg : ndarray
         [°], azimuth in [0, 360).
+
+    References
+    ----------
+    seed 003, eqs. 6–7 (ideal pinhole) and eq. 12; see the module docstring for the model.
     """
     handed = -1.0 if build.mirrored else 1.0
     ux = -(np.asarray(x_px, dtype=float) - build.x0_px) * pixel_pitch_mm
