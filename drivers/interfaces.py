@@ -1,0 +1,256 @@
+"""The small interfaces the bench talks to: a rotary table, a sun simulator, a sun sensor.
+
+Every concrete driver (Meade LX200, Thorlabs APT, Newport SMC100, manual axis; Oriel 69907, SCPI LED supply;
+CMOS pinhole module, USB camera) implements one of these, so the run engine never knows which hardware —
+or which simulator — it drives.
+"""
+
+from __future__ import annotations
+
+import time
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import DeviceFault, DeviceTimeout, LimitError
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Soft limits of one axis [°], checked before anything moves."""
+
+    low_deg: float
+    high_deg: float
+
+    def __post_init__(self) -> None:
+        if not self.low_deg < self.high_deg:
+            raise ValueError(f"soft limits must satisfy low < high, got [{self.low_deg}, {self.high_deg}]")
+
+    def check(self, device: str, angle_deg: float) -> None:
+        if not np.isfinite(angle_deg) or not self.low_deg <= angle_deg <= self.high_deg:
+            raise LimitError(device, f"{angle_deg}° is outside the soft limits [{self.low_deg}, {self.high_deg}]°")
+
+
+class RotaryAxis(ABC):
+    """One rotation axis of a bench table (Thorlabs APT stage, Newport SMC100, manual stage …).
+
+    Units are degrees in the controller's coordinate (after homing, 0 is the home position).
+    `limits` are the *software* soft limits of the bench, checked before any byte is sent.
+    """
+
+    name: str
+    limits: Limits
+    poll_s: float = 0.02
+
+    def check(self, angle_deg: float) -> None:
+        """Raise :class:`~drivers.errors.LimitError` if `angle_deg` is outside the soft limits."""
+        self.limits.check(self.name, angle_deg)
+
+    def move_to(self, angle_deg: float, *, wait: bool = True, timeout_s: float = 120.0) -> None:
+        """Move to `angle_deg` [°]; checks the soft limits first. With `wait`, returns once stopped."""
+        self.check(angle_deg)
+        self._start_move(angle_deg)
+        if wait:
+            self.wait_until_stopped(timeout_s=timeout_s)
+
+    @abstractmethod
+    def _start_move(self, angle_deg: float) -> None:
+        """Command the move; limits are already checked."""
+
+    @abstractmethod
+    def position_deg(self) -> float:
+        """Measured position [°]."""
+
+    @abstractmethod
+    def is_moving(self) -> bool:
+        """True while the axis moves, homes or settles."""
+
+    @abstractmethod
+    def stop(self) -> None:
+        """Stop now."""
+
+    @abstractmethod
+    def home(self, *, wait: bool = True, timeout_s: float = 300.0) -> None:
+        """Run the homing sequence."""
+
+    @abstractmethod
+    def identify(self) -> str:
+        """Model, serial and firmware as the controller reports them."""
+
+    def wait_until_stopped(self, *, timeout_s: float = 120.0) -> float:
+        """Poll until the axis stops; a stalled axis that still answers raises :class:`DeviceTimeout`."""
+        deadline = time.monotonic() + timeout_s
+        while self.is_moving():
+            if time.monotonic() > deadline:
+                position = self.position_deg()
+                self.stop()
+                raise DeviceTimeout(self.name, f"still moving after {timeout_s} s (at {position:.4f}°): stalled?")
+            time.sleep(self.poll_s)
+        return self.position_deg()
+
+
+class RotaryTable(ABC):
+    """A two-axis bench table: azimuth (sensor turned about its boresight) and zenith stage angle Ω."""
+
+    name: str
+
+    @abstractmethod
+    def check(self, azimuth_deg: float, zenith_deg: float) -> None:
+        """Raise :class:`LimitError` unless both angles are inside the soft limits."""
+
+    @abstractmethod
+    def move_to(self, azimuth_deg: float, zenith_deg: float, *, wait: bool = True, timeout_s: float = 120.0) -> None:
+        """Move both axes; both limits are checked before either moves."""
+
+    @abstractmethod
+    def position(self) -> tuple[float, float]:
+        """(azimuth_deg, zenith_deg) as measured."""
+
+    @abstractmethod
+    def is_moving(self) -> bool: ...
+
+    @abstractmethod
+    def stop(self) -> None: ...
+
+    @abstractmethod
+    def home(self) -> None: ...
+
+    @abstractmethod
+    def identify(self) -> str: ...
+
+
+class TwoAxisTable(RotaryTable):
+    """A table made of two independent :class:`RotaryAxis` (two APT stages, two SMC100s, manual stages …)."""
+
+    def __init__(self, azimuth: RotaryAxis, zenith: RotaryAxis, name: str = "table"):
+        self.azimuth, self.zenith, self.name = azimuth, zenith, name
+
+    def check(self, azimuth_deg: float, zenith_deg: float) -> None:
+        self.azimuth.check(azimuth_deg)
+        self.zenith.check(zenith_deg)
+
+    def move_to(self, azimuth_deg, zenith_deg, *, wait=True, timeout_s=120.0):
+        self.check(azimuth_deg, zenith_deg)
+        self.azimuth.move_to(azimuth_deg, wait=False)
+        self.zenith.move_to(zenith_deg, wait=False)
+        if wait:
+            self.azimuth.wait_until_stopped(timeout_s=timeout_s)
+            self.zenith.wait_until_stopped(timeout_s=timeout_s)
+
+    def position(self):
+        return self.azimuth.position_deg(), self.zenith.position_deg()
+
+    def is_moving(self):
+        return self.azimuth.is_moving() or self.zenith.is_moving()
+
+    def stop(self):
+        errors = []
+        for axis in (self.azimuth, self.zenith):  # try both even if one fails
+            try:
+                axis.stop()
+            except Exception as exc:  # noqa: BLE001 - re-raised below
+                errors.append(exc)
+        if errors:
+            raise errors[0]
+
+    def home(self):
+        self.azimuth.home(wait=False)
+        self.zenith.home(wait=False)
+        self.azimuth.wait_until_stopped(timeout_s=300.0)
+        self.zenith.wait_until_stopped(timeout_s=300.0)
+
+    def identify(self):
+        return f"azimuth: {self.azimuth.identify()}; zenith: {self.zenith.identify()}"
+
+
+@dataclass(frozen=True)
+class SourceStatus:
+    """State of a sun simulator.
+
+    Attributes
+    ----------
+    lamp_on : bool
+    warm : bool
+        Output has settled after ignition / switch-on.
+    shutter_open : bool
+    fault : bool
+        The supply reports a fault or an interlock.
+    output : float
+        Output as the supply reports it, in its unit (`output_unit`).
+    output_unit : str
+    """
+
+    lamp_on: bool
+    warm: bool
+    shutter_open: bool
+    fault: bool
+    output: float
+    output_unit: str
+
+
+class SunSimulator(ABC):
+    """A sun simulator: a lamp (or LED) behind a shutter."""
+
+    name: str
+
+    @abstractmethod
+    def lamp_on(self) -> None: ...
+
+    @abstractmethod
+    def standby(self) -> None:
+        """Safe state between runs: shutter closed, lamp at standby (off or at its idle setting)."""
+
+    @abstractmethod
+    def open_shutter(self) -> None: ...
+
+    @abstractmethod
+    def close_shutter(self) -> None: ...
+
+    @abstractmethod
+    def status(self) -> SourceStatus: ...
+
+    @abstractmethod
+    def identify(self) -> str: ...
+
+    def wait_until_warm(self, *, timeout_s: float = 3600.0, poll_s: float = 0.5) -> None:
+        """Poll until the lamp is warm; a lamp fault raises :class:`DeviceFault`."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            status = self.status()
+            if status.fault:
+                raise DeviceFault(self.name, "lamp fault while warming up")
+            if status.warm:
+                return
+            if time.monotonic() > deadline:
+                raise DeviceTimeout(self.name, f"lamp not warm after {timeout_s} s")
+            time.sleep(poll_s)
+
+
+@dataclass(frozen=True)
+class SensorIdentity:
+    model: str
+    serial: str
+    firmware: str
+
+
+class ImageSensor(ABC):
+    """A sun sensor that delivers frames (the CMOS pinhole module, a USB camera)."""
+
+    name: str
+
+    @abstractmethod
+    def identify(self) -> SensorIdentity: ...
+
+    @abstractmethod
+    def set_exposure_ms(self, exposure_ms: float) -> None: ...
+
+    @abstractmethod
+    def exposure_ms(self) -> float: ...
+
+    @abstractmethod
+    def capture(self) -> np.ndarray:
+        """One frame, 2-D uint16 [DN]."""
+
+    @abstractmethod
+    def temperature_c(self) -> float: ...

@@ -1,0 +1,1 @@
+"""pyserial protocol handlers of sunbench (``sim://``); registered by :func:`drivers.transport.register_sim_scheme`."""
