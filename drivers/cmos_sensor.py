@@ -1,0 +1,171 @@
+"""Driver of the CMOS pinhole sun-sensor module (seed 003), over the framed protocol of
+:mod:`drivers.cmos_protocol`.
+
+Every reply is checked — sync, CRC, the echoed sequence number, the reply code, the payload length — and
+anything else raises :class:`~drivers.errors.ProtocolError` carrying the bytes, after the port's input is
+drained so the next exchange starts clean.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import cmos_protocol as wire
+from .errors import DeviceError, DeviceTimeout, LimitError, ProtocolError
+from .interfaces import ImageSensor, SensorIdentity
+from .transport import Port
+
+
+class SensorError(DeviceError):
+    """The module answered with an error frame; `code` is its error code."""
+
+    def __init__(self, device: str, code: int, message: str):
+        self.code = code
+        super().__init__(device, f"module error {code} ({wire.ERROR_MESSAGES.get(code, 'unknown')}): {message}")
+
+
+@dataclass(frozen=True)
+class OnboardCentroid:
+    """The module's own centroid (its firmware runs seed 003 §3.3).
+
+    Attributes
+    ----------
+    x_px, y_px : float
+        Spot centre [px]; NaN unless `status` is "ok".
+    peak_dn : int
+    n_pixels : int
+    status : str
+        "ok", "no spot", "saturated spot" or "several spots".
+    exposure_ms : float
+    """
+
+    x_px: float
+    y_px: float
+    peak_dn: int
+    n_pixels: int
+    status: str
+    exposure_ms: float
+
+
+class CmosSunSensor(ImageSensor):
+    """The CMOS pinhole sun-sensor module.
+
+    Parameters
+    ----------
+    port : Port
+        Opened with ``open_port(url, baudrate=921600)`` (RS-485 adapter, or a simulator URL).
+    exposure_range_ms : (float, float)
+        Exposures the module accepts [ms]; requests outside are refused before sending.
+    packing : int
+        Pixel packing requested for frames (:data:`~drivers.cmos_protocol.PACKED10` halves the transfer).
+    frame_timeout_s : float
+        Timeout of a capture reply [s]; it must cover the exposure and the transfer.
+    """
+
+    def __init__(self, port: Port, *, exposure_range_ms=(0.01, 1000.0), packing: int = wire.PACKED10,
+                 frame_timeout_s: float = 5.0, name: str | None = None):
+        self.port = port
+        self.name = name or port.name
+        self.exposure_range_ms = exposure_range_ms
+        self.packing = packing
+        self.frame_timeout_s = frame_timeout_s
+        self._sequence = 0
+        self._identity: SensorIdentity | None = None
+        self._shape: tuple[int, int] | None = None
+
+    # -- one exchange ---------------------------------------------------------------------------------
+    def _exchange(self, command: int, payload: bytes = b"", *, timeout_s: float | None = None) -> bytes:
+        with self.port.transaction():
+            self.port.discard_input()
+            self._sequence = (self._sequence + 1) & 0xFF
+            self.port.write(wire.encode_frame(command, self._sequence, payload))
+            head = self.port.read_exact(wire.HEADER.size, timeout_s=timeout_s)
+            if head[:2] != wire.SYNC:
+                self._fail(f"reply does not start with the sync bytes", head)
+            _, code, sequence, length = wire.HEADER.unpack(head)
+            if length > wire.MAX_PAYLOAD:
+                self._fail(f"reply announces {length} payload bytes", head)
+            try:
+                rest = self.port.read_exact(length + wire.CRC.size, timeout_s=timeout_s)
+            except DeviceTimeout as exc:
+                raise DeviceTimeout(self.name, f"reply cut short after {len(exc.received)} of "
+                                               f"{length + wire.CRC.size} bytes", received=head + exc.received[:64]) from None
+            frame, _ = self._decode(head + rest)
+            if frame.sequence != self._sequence:
+                self._fail(f"reply to sequence {frame.sequence}, expected {self._sequence}", head)
+            if frame.code == wire.ERROR:
+                code_, message = (frame.payload[0], frame.payload[1:].decode("ascii", "replace")) if frame.payload else (0, "")
+                raise SensorError(self.name, code_, message)
+            if frame.code != command | wire.REPLY:
+                self._fail(f"reply code 0x{frame.code:02X} to command 0x{command:02X}", head)
+            return frame.payload
+
+    def _decode(self, raw: bytes):
+        try:
+            frame, _ = wire.decode_frame(raw)
+        except wire.FrameError as exc:
+            self._fail(str(exc), raw[:64])
+        return frame, None
+
+    def _fail(self, message: str, received: bytes):
+        self.port.discard_input()
+        raise ProtocolError(self.name, message, received=received)
+
+    def _unpack(self, layout: struct.Struct, payload: bytes, what: str):
+        if len(payload) != layout.size:
+            self._fail(f"{what} reply has {len(payload)} payload bytes, expected {layout.size}", payload[:64])
+        return layout.unpack(payload)
+
+    # -- the interface ----------------------------------------------------------------------------------
+    def identify(self) -> SensorIdentity:
+        model, serial, firmware, width, height, bits = self._unpack(wire.IDENTITY, self._exchange(wire.IDENTIFY), "IDENTIFY")
+        self._identity = SensorIdentity(wire.unpad(model), wire.unpad(serial), wire.unpad(firmware))
+        self._shape = (height, width)
+        self.bit_depth = bits
+        return self._identity
+
+    def set_exposure_ms(self, exposure_ms: float) -> float:
+        """Set the exposure [ms]; returns what the module set (it rounds to its line time)."""
+        low, high = self.exposure_range_ms
+        if not low <= exposure_ms <= high:
+            raise LimitError(self.name, f"exposure {exposure_ms} ms is outside [{low}, {high}] ms")
+        (us,) = self._unpack(wire.EXPOSURE, self._exchange(wire.SET_EXPOSURE, wire.EXPOSURE.pack(round(exposure_ms * 1000))), "SET_EXPOSURE")
+        return us / 1000.0
+
+    def exposure_ms(self) -> float:
+        (us,) = self._unpack(wire.EXPOSURE, self._exchange(wire.GET_EXPOSURE), "GET_EXPOSURE")
+        return us / 1000.0
+
+    def capture(self) -> np.ndarray:
+        """Expose and transfer one frame: 2-D uint16 [DN]."""
+        frame, _ = self.capture_with_metadata()
+        return frame
+
+    def capture_with_metadata(self) -> tuple[np.ndarray, dict]:
+        payload = self._exchange(wire.CAPTURE, bytes([self.packing]), timeout_s=self.frame_timeout_s)
+        if len(payload) < wire.FRAME_HEADER.size:
+            self._fail("CAPTURE reply too short", payload[:64])
+        width, height, bits, packing, exposure_us, counter = wire.FRAME_HEADER.unpack_from(payload)
+        pixels = payload[wire.FRAME_HEADER.size:]
+        count = width * height
+        expected = count * 2 if packing == wire.RAW16 else count * 5 // 4
+        if packing not in (wire.RAW16, wire.PACKED10) or len(pixels) != expected:
+            self._fail(f"frame of {width}×{height} with packing {packing} has {len(pixels)} pixel bytes", payload[:64])
+        if packing == wire.RAW16:
+            image = np.frombuffer(pixels, dtype="<u2").astype(np.uint16).reshape(height, width)
+        else:
+            image = wire.unpack10(pixels, count).reshape(height, width)
+        return image, {"exposure_ms": exposure_us / 1000.0, "frame_counter": counter, "bit_depth": bits}
+
+    def onboard_centroid(self) -> OnboardCentroid:
+        x, y, peak, n, status, exposure_us = self._unpack(wire.CENTROID_REPLY, self._exchange(
+            wire.CENTROID, timeout_s=self.frame_timeout_s), "CENTROID")
+        return OnboardCentroid(float(x), float(y), int(peak), int(n), wire.CENTROID_STATUS.get(status, f"status {status}"),
+                               exposure_us / 1000.0)
+
+    def temperature_c(self) -> float:
+        (centi,) = self._unpack(wire.TEMPERATURE_REPLY, self._exchange(wire.TEMPERATURE), "TEMPERATURE")
+        return centi / 100.0

@@ -1,0 +1,155 @@
+"""Protocol front of the simulated CMOS pinhole sun-sensor module (wire format: drivers.cmos_protocol).
+
+A capture takes the exposure plus the read-out in simulated time: its reply is held back until then (at
+time scale 0 the clock jumps there at once). The on-board centroid runs the same seed 003 algorithm as
+the library (calibration.centroid.find_spot), as the module's firmware does. Back door: the WireFaults
+of every simulator, `corrupt_crc` (the next replies carry a wrong CRC) and the world's temperature.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from calibration.centroid import CentroidError, MultipleSpotsError, NoSpotError, SaturatedSpotError, find_spot
+
+from .. import cmos_protocol as wire
+from .device import SimDevice
+from .sensor_optics import DetectorSpec, SpotRenderer
+from .world import SimWorld
+
+MODEL = "SB-CMOS-PINHOLE"
+FIRMWARE = "1.0.0"
+EXPOSURE_RANGE_US = (10, 1_000_000)
+LINE_TIME_US = 10  # exposure is set in whole lines
+
+
+class CmosSensorSimulator(SimDevice):
+    """The CMOS module on the simulated bench."""
+
+    name = "cmos-sensor"
+
+    def __init__(self, world: SimWorld, detector: DetectorSpec = DetectorSpec()):
+        super().__init__()
+        self.world = world
+        self.renderer = SpotRenderer(world, detector)
+        self.exposure_us = 4000
+        self.corrupt_crc = 0
+        self._held: list[tuple[float, bytes]] = []  # (ready time, reply) of captures in progress
+        self.frames = 0
+
+    # -- framing ---------------------------------------------------------------------------------------
+    def handle(self, inbuf: bytearray) -> bytes:
+        out = bytearray()
+        while inbuf:
+            try:
+                frame, used = wire.decode_frame(inbuf)
+            except wire.FrameError as exc:
+                bad_crc = str(exc) == "CRC mismatch" and len(inbuf) >= 4
+                sequence = inbuf[3] if bad_crc else 0
+                del inbuf[: max(exc.consumed, 1)]
+                if bad_crc:
+                    out += self._error(sequence, 3, "CRC mismatch")
+                continue
+            if frame is None:
+                break
+            del inbuf[:used]
+            out += self._dispatch(frame)
+        return bytes(out)
+
+    def _reply(self, command: int, sequence: int, payload: bytes) -> bytes:
+        raw = wire.encode_frame(command | wire.REPLY, sequence, payload)
+        if self.corrupt_crc > 0:
+            self.corrupt_crc -= 1
+            raw = raw[:-1] + bytes([raw[-1] ^ 0xFF])
+        return raw
+
+    def _error(self, sequence: int, code: int, message: str) -> bytes:
+        return wire.encode_frame(wire.ERROR, sequence, bytes([code]) + message.encode())
+
+    def _dispatch(self, frame: wire.Frame) -> bytes:
+        handler = {
+            wire.IDENTIFY: self._identify, wire.SET_EXPOSURE: self._set_exposure, wire.GET_EXPOSURE: self._get_exposure,
+            wire.CAPTURE: self._capture, wire.CENTROID: self._centroid, wire.TEMPERATURE: self._temperature,
+        }.get(frame.code)
+        if handler is None:
+            return self._error(frame.sequence, 1, f"unknown command 0x{frame.code:02X}")
+        return handler(frame)
+
+    # -- commands --------------------------------------------------------------------------------------
+    def _identify(self, frame):
+        design = self.world.sensor.design
+        payload = wire.IDENTITY.pack(wire.pad(MODEL, 16), wire.pad(self.world.sensor.serial, 16), wire.pad(FIRMWARE, 8),
+                                     design.width_px, design.height_px, design.bit_depth)
+        return self._reply(frame.code, frame.sequence, payload)
+
+    def _set_exposure(self, frame):
+        if len(frame.payload) != wire.EXPOSURE.size:
+            return self._error(frame.sequence, 2, "SET_EXPOSURE takes a u32")
+        (us,) = wire.EXPOSURE.unpack(frame.payload)
+        if not EXPOSURE_RANGE_US[0] <= us <= EXPOSURE_RANGE_US[1]:
+            return self._error(frame.sequence, 4, f"exposure {us} us outside {EXPOSURE_RANGE_US}")
+        self.exposure_us = max(LINE_TIME_US, round(us / LINE_TIME_US) * LINE_TIME_US)
+        return self._reply(frame.code, frame.sequence, wire.EXPOSURE.pack(self.exposure_us))
+
+    def _get_exposure(self, frame):
+        return self._reply(frame.code, frame.sequence, wire.EXPOSURE.pack(self.exposure_us))
+
+    def _expose(self) -> np.ndarray:
+        """Expose: the light integrates over the exposure (rendered at its middle) and the read-out follows."""
+        exposure_ms = self.exposure_us / 1000.0
+        image = self.renderer.render(exposure_ms)
+        self.frames += 1
+        return image
+
+    def _hold(self, reply: bytes) -> bytes:
+        ready = self.world.clock.now() + (self.exposure_us / 1000.0 + self.renderer.spec.readout_ms) / 1000.0
+        if self.world.clock.instant:
+            self.world.clock.advance_to(ready)
+            return reply
+        self._held.append((ready, reply))
+        return b""
+
+    def _capture(self, frame):
+        packing = frame.payload[0] if frame.payload else wire.RAW16
+        if packing not in (wire.RAW16, wire.PACKED10):
+            return self._error(frame.sequence, 4, f"packing {packing}")
+        image = self._expose()
+        h, w = image.shape
+        pixels = image.astype("<u2").tobytes() if packing == wire.RAW16 else wire.pack10(image)
+        header = wire.FRAME_HEADER.pack(w, h, self.world.sensor.design.bit_depth, packing, self.exposure_us,
+                                        self.renderer.counter)
+        return self._hold(self._reply(frame.code, frame.sequence, header + pixels))
+
+    def _centroid(self, frame):
+        image = self._expose()
+        status, x, y, peak, n = 0, float("nan"), float("nan"), 0, 0
+        try:
+            spot = find_spot(image, saturation_dn=self.world.sensor.design.saturation_dn)
+            x, y, peak, n = spot.x_px, spot.y_px, int(min(spot.peak_dn, 65535)), min(spot.n_pixels, 65535)
+        except NoSpotError:
+            status = 1
+        except SaturatedSpotError:
+            status = 2
+        except MultipleSpotsError:
+            status = 3
+        except CentroidError:
+            status = 1
+        payload = wire.CENTROID_REPLY.pack(x, y, peak, n, status, self.exposure_us)
+        return self._hold(self._reply(frame.code, frame.sequence, payload))
+
+    def _temperature(self, frame):
+        centi = int(round(self.world.temperature_c * 100))
+        return self._reply(frame.code, frame.sequence, wire.TEMPERATURE_REPLY.pack(max(min(centi, 32767), -32768)))
+
+    # -- time-driven output --------------------------------------------------------------------------------
+    def unsolicited(self) -> bytes:
+        if not self._held:
+            return b""
+        now = self.world.clock.now()
+        ready = [r for t, r in self._held if t <= now]
+        self._held = [(t, r) for t, r in self._held if t > now]
+        return b"".join(ready)
+
+    def reset_link(self) -> None:
+        super().reset_link()
+        self._held.clear()
