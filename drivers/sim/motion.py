@@ -106,7 +106,7 @@ class AxisModel:
         self.motor_deg = 0.0  # controller coordinate, at the end of the last completed segment
         self.true_minus_reported = spec.start_true_deg
         self.direction = 1.0
-        self.homed = False
+        self._homed = False
         self.stalled = False
         self.limit_hit: str | None = None  # "low" / "high"
         self.homing = False
@@ -132,7 +132,7 @@ class AxisModel:
         self._move = None
         if self.homing:
             self.homing = False
-            self.homed = True
+            self._homed = True
             # the switch now reads home_position_deg
             true = self.motor_deg + self.true_minus_reported
             self.true_minus_reported = true - self.spec.home_position_deg
@@ -144,6 +144,12 @@ class AxisModel:
         t0, start, end, rate, _ = self._move
         t = (self._frozen_at if self.stalled and self._frozen_at is not None else now) - t0
         return start + _trapezoid_position(max(t, 0.0), end - start, rate, self.spec.accel_deg_s2)
+
+    @property
+    def homed(self) -> bool:
+        """The homing sequence has completed since power-up."""
+        self._sync()
+        return self._homed
 
     def _quantise(self, angle: float) -> float:
         return round(angle / self.spec.step_deg) * self.spec.step_deg
