@@ -1,7 +1,7 @@
 """Byte-exact driver tests, PyMeasure style: a port that plays a script of (sent, reply) exchanges.
 
-    with scripted_port([(b":GA#", b"+45\\xdf30#")]) as port:
-        assert LX200(port).altitude_deg() == 45.5
+    with scripted_port([(b":GA#", b"+45\\xdf30'00#")]) as port:
+        assert LX200Table(port, az_limits, zen_limits).altitude_deg() == 45.5
 
 The script fails the test when the driver sends anything other than the next expected bytes, and at the end
 of the ``with`` block when exchanges are left over or sent bytes are still unmatched.
@@ -25,6 +25,7 @@ class ScriptedSerial:
         self.is_open = True
 
     def write(self, data: bytes) -> int:
+        self._unsolicited()  # on a real port, volunteered bytes would already be waiting
         self.pending += data
         while self.script and self.script[0][0] and self.pending.startswith(self.script[0][0]):
             sent, reply = self.script.pop(0)
@@ -58,6 +59,7 @@ class ScriptedSerial:
 
     @property
     def in_waiting(self) -> int:
+        self._unsolicited()
         return len(self.output)
 
     def flush(self) -> None:

@@ -108,10 +108,11 @@ class AxisModel:
         self.direction = 1.0
         self._homed = False
         self.stalled = False
-        self.limit_hit: str | None = None  # "low" / "high"
+        self._limit_hit: str | None = None  # "low" / "high"
         self.homing = False
         self._move: tuple[float, float, float, float, float] | None = None  # t0, start, end, rate, duration
         self._frozen_at: float | None = None
+        self._limit_on_arrival: str | None = None
 
     # -- observing ------------------------------------------------------------------------------------
     def _sync(self) -> float:
@@ -130,6 +131,8 @@ class AxisModel:
         _, _, end, _, _ = self._move
         self.motor_deg = end
         self._move = None
+        if self._limit_on_arrival:
+            self._limit_hit, self._limit_on_arrival = self._limit_on_arrival, None
         if self.homing:
             self.homing = False
             self._homed = True
@@ -144,6 +147,12 @@ class AxisModel:
         t0, start, end, rate, _ = self._move
         t = (self._frozen_at if self.stalled and self._frozen_at is not None else now) - t0
         return start + _trapezoid_position(max(t, 0.0), end - start, rate, self.spec.accel_deg_s2)
+
+    @property
+    def limit_hit(self) -> str | None:
+        """The limit switch the axis stands on: "low", "high" or None."""
+        self._sync()
+        return self._limit_hit
 
     @property
     def homed(self) -> bool:
@@ -180,10 +189,11 @@ class AxisModel:
             self._move = None
         self.motor_deg = start
         end = self._quantise(target)
+        self._limit_on_arrival = None
         if self.spec.hard_limits_deg is not None:
             low, high = (x - self.true_minus_reported for x in self.spec.hard_limits_deg)
-            if end < low or end > high:
-                self.limit_hit = "low" if end < low else "high"
+            if end < low or end > high:  # the move will end on the switch, which trips when reached
+                self._limit_on_arrival = "low" if end < low else "high"
                 end = min(max(end, low), high)
         if end != start:
             self.direction = math.copysign(1.0, end - start)
@@ -200,7 +210,7 @@ class AxisModel:
         if self.limit_hit:
             if not self._leaves_limit(target_deg):
                 raise AxisLimitError(f"on the {self.limit_hit} limit switch")
-            self.limit_hit = None
+            self._limit_hit = None
         return self._start(target_deg, self.spec.max_rate_deg_s)
 
     def _leaves_limit(self, target_deg: float) -> bool:
@@ -212,7 +222,7 @@ class AxisModel:
 
     def home(self) -> float:
         """Start homing: move to the home switch at the homing rate; returns the duration [s]."""
-        self.limit_hit = None
+        self._limit_hit = None
         switch = self.spec.home_switch_true_deg - self.true_minus_reported
         self.homing = True
         return self._start(switch, self.spec.home_rate_deg_s)
@@ -224,6 +234,7 @@ class AxisModel:
             self.motor_deg = self._motor_now(now)
             self._move = None
             self.homing = False
+            self._limit_on_arrival = None  # stopped before reaching the switch
 
     # -- back door --------------------------------------------------------------------------------------
     def stall(self) -> None:
@@ -243,4 +254,4 @@ class AxisModel:
     def trip_limit(self, side: str = "high") -> None:
         """A limit switch closes: motion stops at once."""
         self.stop()
-        self.limit_hit = side
+        self._limit_hit = side
