@@ -222,6 +222,8 @@ class SunSimulator(ABC):
                 raise DeviceFault(self.name, "lamp fault while warming up")
             if status.warm:
                 return
+            if not status.lamp_on:
+                raise DeviceFault(self.name, "lamp is off: it cannot warm up (switch it on first)")
             if time.monotonic() > deadline:
                 raise DeviceTimeout(self.name, f"lamp not warm after {timeout_s} s")
             time.sleep(poll_s)

@@ -41,6 +41,12 @@ class LampSpec:
     nominal_current_a: float = 5.0
 
 
+    @property
+    def warm_time_s(self) -> float:
+        """Time from START until the output is within `warm_tolerance` of its final value [s]."""
+        return self.ignition_s + self.warmup_tau_s * math.log(0.3 / self.warm_tolerance)
+
+
 XENON = LampSpec()
 LED = LampSpec(kind="led", ignition_s=0.0, warmup_tau_s=0.5, warm_tolerance=0.01, drift_per_hour=0.001,
                nominal_current_a=0.7)
@@ -87,7 +93,7 @@ class LampModel:
 
     def warm_at(self) -> float:
         """Simulated time at which the lamp counts as warm [s]."""
-        return self.t_on + self.spec.ignition_s + self.spec.warmup_tau_s * math.log(0.3 / self.spec.warm_tolerance)
+        return self.t_on + self.spec.warm_time_s
 
     def is_warm(self) -> bool:
         if not self.on or self.fault:
