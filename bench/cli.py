@@ -26,6 +26,7 @@ from calibration.models.physical import PhysicalCalibration
 from calibration.pinhole import PinholeBuild
 from calibration.synthetic import EXAMPLE_BUILD, synthetic_bench_data
 
+from .benchfile import BenchFile, BenchFileError, load_bench_file
 from .datafile import (DataFileError, calibration_document, read_bench_csv, read_calibration, read_spots_csv,
                        write_applied_csv, write_bench_csv, write_calibration)
 
@@ -51,7 +52,7 @@ def _user_errors(command):
     def wrapper(*args, **kwargs):
         try:
             return command(*args, **kwargs)
-        except (DataFileError, CalibrationError) as exc:
+        except (DataFileError, CalibrationError, BenchFileError) as exc:
             err.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
             raise typer.Exit(2) from None
         except OSError as exc:
@@ -215,6 +216,39 @@ def demo(
                                                reports=reports, software=f"sunbench {_version()}"))
         _write_text(output_dir / "calibration.h", c_header(calibration, sensor_id=data.sensor_id))
         out.print(f"bench data, calibration and C header written to {escape(str(output_dir))}/")
+
+
+@app.command("sim")
+@_user_errors
+def serve_simulators(
+    config: Optional[Path] = typer.Option(None, "--config", "-c", help="Bench YAML file (its `simulation:` "
+                                                                     "section); default: examples/bench-sim.yaml's values."),
+    host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
+    port: int = typer.Option(0, help="First TCP port (devices get consecutive ports); 0 = any free ports."),
+    time_scale: Optional[float] = typer.Option(None, "--time-scale", min=0.0,
+                                               help="Override the simulated clock (0 = instant)."),
+) -> None:
+    """Serve every simulated device of the bench on a TCP port and print their URLs."""
+    import time
+
+    from drivers.sim.bench import SimBench
+
+    bench_file = load_bench_file(config) if config else BenchFile()
+    bench = SimBench(bench_file.simulation, time_scale=time_scale)
+    server = bench.serve(host=host, base_port=port)
+    sim = bench_file.simulation
+    out.print(f"simulated bench: {sim.table} table, {sim.source} source, sensor {sim.sensor.serial}, "
+              f"time scale {bench.world.clock.time_scale:g}", highlight=False)
+    for role, url in server.urls.items():
+        print(f"{role:14s} {url}", flush=True)
+    print("serving; Ctrl-C to stop", flush=True)
+    try:
+        while True:
+            time.sleep(0.5)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.stop()
 
 
 def main() -> None:  # pragma: no cover - entry point

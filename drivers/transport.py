@@ -92,9 +92,15 @@ class Port:
 
     def discard_input(self) -> bytes:
         """Drop (and return) whatever is waiting, so a reply cannot be taken for an older one."""
-        with self._io():
-            waiting = self.raw.in_waiting
-            return self.raw.read(waiting) if waiting else b""
+        dropped = bytearray()
+        with self._io(dropped):
+            # loop: some ports (pyserial's socket://) report 1 for "something is waiting", not a count
+            for _ in range(10000):
+                waiting = self.raw.in_waiting
+                if not waiting:
+                    break
+                dropped += self.raw.read(waiting)
+        return bytes(dropped)
 
     def read_exact(self, size: int, *, timeout_s: float | None = None) -> bytes:
         """Read exactly `size` bytes or raise :class:`DeviceTimeout` with the partial reply."""

@@ -1,0 +1,167 @@
+"""A whole simulated bench: one world, a table, a sun simulator and the sensor, served by URL.
+
+`SimBenchConfig` is the ``simulation:`` section of a bench YAML file (``examples/bench-sim.yaml``): the
+world's truth — the table's mechanics and zero offsets, the bench geometry, the source, the sensor's build
+errors and its misalignment on the fixture. :class:`SimBench` builds the simulators from it and serves them
+in-process (``sim://`` URLs) or over TCP (``socket://`` URLs, ``sunbench sim``).
+"""
+
+from __future__ import annotations
+
+import itertools
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from calibration.design import BenchGeometry, SensorDesign
+from calibration.pinhole import PinholeBuild
+
+from . import registry
+from .clock import SimClock
+from .lamp import LED, XENON
+from .motion import AxisSpec
+from .world import SensorTruth, SimWorld
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class AxisConfig(_Strict):
+    """Mechanics of one simulated axis (see :class:`drivers.sim.motion.AxisSpec`)."""
+
+    max_rate_deg_s: float = Field(10.0, gt=0)
+    accel_deg_s2: float = Field(20.0, gt=0)
+    settle_s: float = Field(0.05, ge=0)
+    backlash_deg: float = Field(0.0, ge=0)
+    step_deg: float = Field(3.0 / 409600.0, gt=0)
+    hard_limits_deg: tuple[float, float] | None = None
+    home_switch_true_deg: float = 0.0
+    home_rate_deg_s: float = Field(5.0, gt=0)
+    start_true_deg: float = 0.0
+
+    def spec(self) -> AxisSpec:
+        return AxisSpec(**self.model_dump())
+
+
+class GeometryConfig(_Strict):
+    lever_arm_mm: float = Field(136.2, ge=0)
+    source_distance_mm: float = Field(710.0, gt=0)
+    source_diameter_deg: float = Field(0.5, gt=0, lt=10)
+
+
+class BuildConfig(_Strict):
+    x0_px: float = 325.8
+    y0_px: float = 233.4
+    gap_mm: float = Field(1.05, gt=0)
+    glass_mm: float = Field(0.5, ge=0)
+    glass_index: float = Field(1.52, ge=1)
+    tilt_x_deg: float = 0.22
+    tilt_y_deg: float = -0.21
+    rotation_deg: float = 1.4
+    mirrored: bool = False
+
+
+class SensorConfig(_Strict):
+    serial: str = "SIM-0001"
+    build: BuildConfig = BuildConfig()
+    aperture_ellipticity: float = Field(0.0002, ge=0, lt=0.1)
+    aperture_axis_deg: float = 20.0
+
+
+class MountConfig(_Strict):
+    tilt_x_deg: float = 0.0
+    tilt_y_deg: float = 0.0
+
+
+class SimBenchConfig(_Strict):
+    """The simulated bench (the ``simulation:`` section of a bench file)."""
+
+    time_scale: float = Field(1.0, ge=0)
+    seed: int = 0
+    table: Literal["apt", "lx200", "smc100"] = "apt"
+    source: Literal["xenon", "led"] = "xenon"
+    geometry: GeometryConfig = GeometryConfig()
+    sensor: SensorConfig = SensorConfig()
+    mount: MountConfig = MountConfig()
+    azimuth_axis: AxisConfig = AxisConfig()
+    zenith_axis: AxisConfig = AxisConfig(hard_limits_deg=(-95.0, 95.0))
+    temperature_c: float = 22.0
+
+
+_prefixes = itertools.count()
+
+
+class SimBench:
+    """The simulators of one bench, built from a :class:`SimBenchConfig`.
+
+    Attributes
+    ----------
+    world : SimWorld
+    devices : dict of str to SimDevice
+        By role: ``table`` (LX200) or ``table-azimuth`` and ``table-zenith`` (APT, SMC100), ``lamp`` and
+        ``shutter`` (xenon) or ``led`` (LED), ``sensor``.
+    """
+
+    def __init__(self, config: SimBenchConfig | None = None, *, time_scale: float | None = None):
+        self.config = config = config or SimBenchConfig()
+        clock = SimClock(config.time_scale if time_scale is None else time_scale)
+        build = PinholeBuild(**config.sensor.build.model_dump())
+        truth = SensorTruth(build=build, design=SensorDesign(), serial=config.sensor.serial,
+                            aperture_ellipticity=config.sensor.aperture_ellipticity,
+                            aperture_axis_deg=config.sensor.aperture_axis_deg)
+        self.world = SimWorld(clock=clock, bench=BenchGeometry(**config.geometry.model_dump()), sensor=truth,
+                              mount_tilt_x_deg=config.mount.tilt_x_deg, mount_tilt_y_deg=config.mount.tilt_y_deg,
+                              lamp_spec=XENON if config.source == "xenon" else LED, seed=config.seed,
+                              temperature_c=config.temperature_c)
+        self.devices = {**self._table(), **self._source(), **self._sensor()}
+        self._registered: list[str] = []
+
+    def _table(self) -> dict:
+        az, zen = self.config.azimuth_axis.spec(), self.config.zenith_axis.spec()
+        if self.config.table == "lx200":
+            from .lx200 import LX200Simulator
+            return {"table": LX200Simulator(self.world, az, zen)}
+        if self.config.table == "apt":
+            from .thorlabs_apt import AptStageSimulator
+            a = AptStageSimulator(self.world, az, 55000001)
+            z = AptStageSimulator(self.world, zen, 55000002)
+        else:
+            from .newport_smc100 import Smc100Simulator
+            a, z = Smc100Simulator(self.world, az), Smc100Simulator(self.world, zen)
+        self.world.attach_table(a.axis, z.axis)
+        return {"table-azimuth": a, "table-zenith": z}
+
+    def _source(self) -> dict:
+        if self.config.source == "xenon":
+            from .oriel69907 import Oriel69907Simulator
+            from .shutter import ShutterSimulator
+            return {"lamp": Oriel69907Simulator(self.world), "shutter": ShutterSimulator(self.world)}
+        from .scpi_supply import ScpiSupplySimulator
+        return {"led": ScpiSupplySimulator(self.world)}
+
+    def _sensor(self) -> dict:
+        from .cmos_sensor import CmosSensorSimulator
+        return {"sensor": CmosSensorSimulator(self.world)}
+
+    def register(self, prefix: str | None = None) -> dict[str, str]:
+        """Serve every device in-process; returns role → ``sim://`` URL (unique names per bench)."""
+        prefix = prefix or f"bench{next(_prefixes)}"
+        urls = {}
+        for role, device in self.devices.items():
+            name = f"{prefix}-{role}"
+            urls[role] = registry.register(name, device)
+            self._registered.append(name)
+        return urls
+
+    def unregister(self) -> None:
+        for name in self._registered:
+            registry.unregister(name)
+        self._registered.clear()
+
+    def serve(self, *, host: str = "127.0.0.1", base_port: int = 0):
+        """Serve every device over TCP; returns the started :class:`~drivers.sim.tcp.SimServer`."""
+        from .tcp import SimServer
+        server = SimServer(self.devices, host=host, base_port=base_port)
+        server.start()
+        return server
