@@ -17,7 +17,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from calibration.design import DEFAULT_BENCH, DEFAULT_SENSOR, BenchGeometry
+from calibration.design import DEFAULT_BENCH, BenchGeometry
 from calibration.errors import CalibrationError
 from calibration.evaluation import MethodReport, best_method, compare_methods
 from calibration.export import c_header

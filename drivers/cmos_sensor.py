@@ -84,7 +84,7 @@ class CmosSunSensor(ImageSensor):
             self.port.write(wire.encode_frame(command, self._sequence, payload))
             head = self.port.read_exact(wire.HEADER.size, timeout_s=timeout_s)
             if head[:2] != wire.SYNC:
-                self._fail(f"reply does not start with the sync bytes", head)
+                self._fail("reply does not start with the sync bytes", head)
             _, code, sequence, length = wire.HEADER.unpack(head)
             if length > wire.MAX_PAYLOAD:
                 self._fail(f"reply announces {length} payload bytes", head)
@@ -93,7 +93,7 @@ class CmosSunSensor(ImageSensor):
             except DeviceTimeout as exc:
                 raise DeviceTimeout(self.name, f"reply cut short after {len(exc.received)} of "
                                                f"{length + wire.CRC.size} bytes", received=head + exc.received[:64]) from None
-            frame, _ = self._decode(head + rest)
+            frame = self._decode(head + rest)
             if frame.sequence != self._sequence:
                 self._fail(f"reply to sequence {frame.sequence}, expected {self._sequence}", head)
             if frame.code == wire.ERROR:
@@ -103,12 +103,12 @@ class CmosSunSensor(ImageSensor):
                 self._fail(f"reply code 0x{frame.code:02X} to command 0x{command:02X}", head)
             return frame.payload
 
-    def _decode(self, raw: bytes):
+    def _decode(self, raw: bytes) -> wire.Frame:
         try:
             frame, _ = wire.decode_frame(raw)
         except wire.FrameError as exc:
             self._fail(str(exc), raw[:64])
-        return frame, None
+        return frame
 
     def _fail(self, message: str, received: bytes):
         self.port.discard_input()

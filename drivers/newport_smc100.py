@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 from .errors import DeviceFault, DeviceTimeout, LimitError, ProtocolError
 from .interfaces import Limits, RotaryAxis
-from .transport import Port, open_port
+from .transport import Port, ask_again, open_port
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
@@ -218,20 +218,15 @@ class Smc100Axis(RotaryAxis):
 
     def _ask(self, command: str, parse=str, *, retry: bool = True):
         """Query `command` and return ``parse(value)``; a corrupted reply is asked again if `retry`."""
-        attempts = self.retries + 1 if retry else 1
-        for attempt in range(attempts):
+        def attempt():
+            value = self._ask_once(command)
             try:
-                value = self._ask_once(command)
-                try:
-                    return parse(value)
-                except ValueError:
-                    raise ProtocolError(self.name, f"cannot parse {value!r} as the value of {command!r}",
-                                        received=value.encode()) from None
-            except ProtocolError as exc:
-                if attempt == attempts - 1:
-                    raise
-                log.warning("%s: %s; asking again", self.name, exc)
-        raise AssertionError("unreachable")  # pragma: no cover
+                return parse(value)
+            except ValueError:
+                raise ProtocolError(self.name, f"cannot parse {value!r} as the value of {command!r}",
+                                    received=value.encode()) from None
+
+        return ask_again(self.name, attempt, self.retries if retry else 0, on=ProtocolError)
 
     def last_error(self) -> str:
         """Letter of the last command error (TE); ``"@"`` is none."""

@@ -45,8 +45,8 @@ import re
 import time
 from dataclasses import dataclass
 
-from .errors import DeviceError, DeviceTimeout, LimitError, ProtocolError
-from .transport import Port
+from .errors import DeviceError, LimitError, ProtocolError
+from .transport import Port, ask_again
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
@@ -231,14 +231,7 @@ class Oriel69907:
 
     def _ask(self, command: str, parse, *, retry: bool = True):
         """Query and parse, asking again (``retries`` times) after a garbled or cut reply when `retry`."""
-        retries = self.retries if retry else 0
-        for attempt in range(retries + 1):
-            try:
-                return parse(command, self._exchange(command))
-            except (ProtocolError, DeviceTimeout) as exc:
-                if attempt == retries:
-                    raise
-                log.warning("%s: %s; asking again", self.name, exc)
+        return ask_again(self.name, lambda: parse(command, self._exchange(command)), self.retries if retry else 0)
 
     def _register(self, command: str, body: bytes, name: str) -> int:
         match = _REGISTER.match(body)

@@ -30,8 +30,8 @@ import math
 import re
 import time
 
-from .errors import DeviceError, DeviceTimeout, LimitError, ProtocolError
-from .transport import Port
+from .errors import DeviceError, LimitError, ProtocolError
+from .transport import Port, ask_again
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
@@ -108,16 +108,11 @@ class ScpiSupply:
             self.port.write(command.encode("ascii") + TERMINATOR)
 
     def _ask(self, command: str, parse, *, retry: bool = True):
-        retries = self.retries if retry else 0
-        for attempt in range(retries + 1):
-            try:
-                reply = self.port.query(command.encode("ascii") + TERMINATOR, TERMINATOR)
-                body = reply[:-1].removesuffix(b"\r").decode("ascii", errors="replace")
-                return parse(command, body)
-            except (ProtocolError, DeviceTimeout) as exc:
-                if attempt == retries:
-                    raise
-                log.warning("%s: %s; asking again", self.name, exc)
+        def attempt():
+            reply = self.port.query(command.encode("ascii") + TERMINATOR, TERMINATOR)
+            return parse(command, reply[:-1].removesuffix(b"\r").decode("ascii", errors="replace"))
+
+        return ask_again(self.name, attempt, self.retries if retry else 0)
 
     def _float(self, command: str, text: str) -> float:
         if not _NUMBER.match(text):

@@ -47,7 +47,7 @@ from __future__ import annotations
 import logging
 
 from .errors import DeviceError, DeviceFault, DeviceTimeout, LimitError, ProtocolError
-from .transport import Port
+from .transport import Port, ask_again
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
@@ -100,17 +100,13 @@ class ThorlabsSC10:
         return value.strip()
 
     def _ask(self, command: str, parse):
-        for attempt in range(self.retries + 1):
-            try:
-                value = self._exchange(command)
-                if value is None:
-                    raise ProtocolError(self.name, f"{command!r}: no value in the reply")
-                return parse(command, value)
-            except (ProtocolError, DeviceTimeout) as exc:
-                if attempt == self.retries:
-                    raise
-                log.warning("%s: %s; asking again", self.name, exc)
+        def attempt():
+            value = self._exchange(command)
+            if value is None:
+                raise ProtocolError(self.name, f"{command!r}: no value in the reply")
+            return parse(command, value)
 
+        return ask_again(self.name, attempt, self.retries)
     def _set(self, command: str) -> None:
         if self._exchange(command) is not None:
             raise ProtocolError(self.name, f"{command!r}: unexpected value in the reply to a set")

@@ -12,6 +12,7 @@ a timeout on every read, one lock per port, typed errors that carry the bytes re
 from __future__ import annotations
 
 import json
+import logging
 import threading
 import time
 from contextlib import contextmanager
@@ -19,8 +20,9 @@ from pathlib import Path
 
 import serial
 
-from .errors import DeviceDisconnected, DeviceTimeout
+from .errors import DeviceDisconnected, DeviceTimeout, ProtocolError
 
+log = logging.getLogger(__name__)
 _SIM_PACKAGE = "drivers.sim.urlhandler"
 
 
@@ -57,6 +59,21 @@ def open_port(url: str, *, baudrate: int = 9600, timeout_s: float = 1.0, record=
     if record is not None:
         raw = RecordingSerial(raw, record)
     return Port(raw, name=name or url, timeout_s=timeout_s)
+
+
+def ask_again(name: str, attempt, retries: int, *, on=(ProtocolError, DeviceTimeout)):
+    """Call `attempt()`; after a garbled or cut reply (`on`) call it again, up to `retries` more times.
+
+    Only for exchanges that are safe to repeat (queries): a set command that may have taken effect must
+    not be re-sent. The last failure is raised as it is.
+    """
+    for left in range(retries, -1, -1):
+        try:
+            return attempt()
+        except on as exc:
+            if not left:
+                raise
+            log.warning("%s: %s; asking again", name, exc)
 
 
 class Port:
