@@ -80,6 +80,7 @@ class SimBenchConfig(_Strict):
     time_scale: float = Field(1.0, ge=0)
     seed: int = 0
     table: Literal["apt", "lx200", "smc100"] = "apt"
+    axis_order: Literal["azimuth-on-zenith", "zenith-on-azimuth"] = "azimuth-on-zenith"
     source: Literal["xenon", "led"] = "xenon"
     geometry: GeometryConfig = GeometryConfig()
     sensor: SensorConfig = SensorConfig()
@@ -113,7 +114,7 @@ class SimBench:
         self.world = SimWorld(clock=clock, bench=BenchGeometry(**config.geometry.model_dump()), sensor=truth,
                               mount_tilt_x_deg=config.mount.tilt_x_deg, mount_tilt_y_deg=config.mount.tilt_y_deg,
                               lamp_spec=XENON if config.source == "xenon" else LED, seed=config.seed,
-                              temperature_c=config.temperature_c)
+                              temperature_c=config.temperature_c, axis_order=config.axis_order)
         self.devices = {**self._table(), **self._source(), **self._sensor()}
         self._registered: list[str] = []
 

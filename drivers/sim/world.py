@@ -8,8 +8,9 @@ sensor's misalignment on its fixture, none of which a driver can see.
 
 Bench geometry (seed 003 §4.1, Fig. 4.5): the sensor sits on an azimuth stage that turns it about its
 boresight; that stage rides on a zenith stage whose axis is `lever_arm_mm` behind the sensor, facing a
-source `source_distance_mm` away. The incidence angle follows seed 003 eq. 8; the sun lies in the zenith
-stage's plane of rotation, which the azimuth stage turns in the sensor frame.
+source `source_distance_mm` away — or, with the other axis order, on an alt-az mount. The sun direction
+is computed from the pose of the sensor along that chain, so for seed 003's order its zenith is eq. 8's
+incidence angle.
 """
 
 from __future__ import annotations
@@ -20,13 +21,31 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calibration.design import DEFAULT_BENCH, DEFAULT_SENSOR, BenchGeometry, SensorDesign
-from calibration.geometry import direction_vector, incidence_from_stage_angle, zenith_azimuth_from_vector
+from calibration.geometry import zenith_azimuth_from_vector
 from calibration.pinhole import PinholeBuild, detector_rotation
 from calibration.synthetic import EXAMPLE_BUILD
 
 from .clock import SimClock
 from .lamp import XENON, LampModel, LampSpec
 from .motion import AxisModel, AxisSpec
+
+
+AXIS_ORDERS = ("azimuth-on-zenith", "zenith-on-azimuth")
+
+
+def _rot_x(deg: float) -> np.ndarray:
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _rot_y(deg: float) -> np.ndarray:
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _rot_z(deg: float) -> np.ndarray:
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 @dataclass(frozen=True)
@@ -67,6 +86,8 @@ class SimWorld:
         Misalignment of the sensor on its fixture (a rigid rotation of the body frame) [°].
     azimuth_sign : float
         +1 when a positive azimuth-stage angle is a positive sun azimuth in the body frame.
+    axis_order : str
+        Which stage carries which: "azimuth-on-zenith" (seed 003) or "zenith-on-azimuth" (alt-az mount).
     azimuth, zenith : AxisModel or None
         The table's axes, attached by the table simulators.
     lamp : LampModel
@@ -80,6 +101,7 @@ class SimWorld:
     mount_tilt_x_deg: float = 0.0
     mount_tilt_y_deg: float = 0.0
     azimuth_sign: float = 1.0
+    axis_order: str = "azimuth-on-zenith"
     lamp_spec: LampSpec = XENON
     seed: int = 0
     azimuth: AxisModel | None = None
@@ -88,6 +110,8 @@ class SimWorld:
     temperature_c: float = 22.0
 
     def __post_init__(self) -> None:
+        if self.axis_order not in AXIS_ORDERS:
+            raise ValueError(f"`axis_order` must be one of {AXIS_ORDERS}, got {self.axis_order!r}")
         if self.lamp is None:
             self.lamp = LampModel(self.lamp_spec, self.clock)
 
@@ -104,20 +128,41 @@ class SimWorld:
         omega = self.zenith.true_deg() if self.zenith else 0.0
         return az, omega
 
+    def sensor_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """Orientation R (columns: body axes in the lab) and position P [mm] of the sensor in the lab frame.
+
+        Lab frame: the source lies on +z at `lever_arm_mm + source_distance_mm` from the origin, where the
+        table's axes meet; at zero stage angles the sensor sits `lever_arm_mm` out along +z, facing the source.
+        ``azimuth-on-zenith`` (seed 003): the zenith stage turns about lab y and carries the azimuth stage, which
+        turns the sensor about its boresight. ``zenith-on-azimuth`` (an alt-az mount, seed 002): the azimuth
+        axis is the lab vertical (y) and carries the altitude axis (x).
+        """
+        az, omega = self.stage_true_deg()
+        az *= self.azimuth_sign
+        if self.axis_order == "azimuth-on-zenith":
+            rotation = _rot_y(-omega) @ _rot_z(-az)
+            position = _rot_y(-omega) @ np.array([0.0, 0.0, self.bench.lever_arm_mm])
+        else:
+            rotation = _rot_y(-az) @ _rot_x(omega)
+            position = rotation @ np.array([0.0, 0.0, self.bench.lever_arm_mm])
+        if self.mount_tilt_x_deg or self.mount_tilt_y_deg:
+            rotation = rotation @ detector_rotation(self.mount_tilt_x_deg, self.mount_tilt_y_deg, 0.0)
+        return rotation, position
+
     def sun_direction_body(self) -> tuple[float, float]:
         """True sun direction in the sensor body frame (zenith_deg, azimuth_deg), from the table's pose.
+
+        The direction from the sensor to the centre of the source, expressed in the body frame; for the
+        seed 003 axis order its zenith is eq. 8's incidence angle and its azimuth the azimuth stage's angle.
 
         References
         ----------
         seed 003, eq. 8 (incidence on a bench with an offset zenith axis) and eq. 12.
         """
-        az, omega = self.stage_true_deg()
-        theta = float(incidence_from_stage_angle(omega, self.bench.lever_arm_mm, self.bench.source_distance_mm))
-        phi = (0.0 if theta >= 0 else 180.0) + self.azimuth_sign * az
-        s = direction_vector(abs(theta), phi)
-        if self.mount_tilt_x_deg or self.mount_tilt_y_deg:
-            s = s @ detector_rotation(self.mount_tilt_x_deg, self.mount_tilt_y_deg, 0.0)
-        zenith, azimuth = zenith_azimuth_from_vector(s)
+        rotation, position = self.sensor_pose()
+        source = np.array([0.0, 0.0, self.bench.lever_arm_mm + self.bench.source_distance_mm])
+        to_source = source - position
+        zenith, azimuth = zenith_azimuth_from_vector(rotation.T @ (to_source / np.linalg.norm(to_source)))
         return float(zenith), float(azimuth)
 
     def irradiance(self) -> float:

@@ -147,3 +147,22 @@ def test_mount_misalignment_tilts_the_body_frame():
     world.attach_table(world.new_axis(AxisSpec()), world.new_axis(AxisSpec()))
     zenith, azimuth = world.sun_direction_body()
     assert zenith == pytest.approx(0.5, abs=1e-6) and azimuth == pytest.approx(180.0, abs=1e-6)
+
+
+def test_alt_az_axis_order_gives_the_gimbal_direction():
+    from calibration.design import BenchGeometry
+    world = SimWorld(bench=BenchGeometry(lever_arm_mm=0.0, source_distance_mm=1e9), axis_order="zenith-on-azimuth")
+    world.attach_table(world.new_axis(AxisSpec()), world.new_axis(AxisSpec()))
+    world.azimuth.move_to(30.0)
+    zenith, azimuth = world.sun_direction_body()
+    assert zenith == pytest.approx(30.0, abs=1e-5) and azimuth == pytest.approx(0.0, abs=1e-5)
+    world.azimuth.move_to(0.0)
+    world.zenith.move_to(20.0)
+    zenith, azimuth = world.sun_direction_body()
+    assert zenith == pytest.approx(20.0, abs=1e-5) and azimuth == pytest.approx(90.0, abs=1e-5)
+    world.azimuth.move_to(30.0)
+    zenith, _ = world.sun_direction_body()
+    import math
+    assert math.cos(math.radians(zenith)) == pytest.approx(math.cos(math.radians(30)) * math.cos(math.radians(20)), abs=1e-6)
+    with pytest.raises(ValueError, match="axis_order"):
+        SimWorld(axis_order="sideways")
