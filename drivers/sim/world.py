@@ -108,6 +108,7 @@ class SimWorld:
     zenith: AxisModel | None = None
     lamp: LampModel | None = None
     temperature_c: float = 22.0
+    enclosure_open: bool = False  # back door: the enclosure door switch
 
     def __post_init__(self) -> None:
         if self.axis_order not in AXIS_ORDERS:

@@ -1,0 +1,126 @@
+"""Campaign files (YAML): which procedure to run on which sensors.
+
+Every problem is a :class:`CampaignFileError` naming the file and the field. ``examples/seed003.yaml`` is the
+seed 003 procedure with every field spelled out.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from calibration.models import METHODS
+
+
+class CampaignFileError(Exception):
+    """A campaign file that cannot be used; the message names the file and the field."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class AutoExposure(_Strict):
+    """Exposure search at normal incidence (seed 003 §4.2 step 0): raise it when there is no spot, lower it
+    when the spot saturates, until the peak sits near `target_peak_fraction` of full scale."""
+
+    start_ms: float = Field(4.0, gt=0)
+    target_peak_fraction: float = Field(0.7, gt=0.05, lt=0.95)
+    tolerance: float = Field(0.2, gt=0, lt=1)
+    min_ms: float = Field(0.05, gt=0)
+    max_ms: float = Field(500.0, gt=0)
+    max_steps: int = Field(12, ge=1, le=50)
+
+
+class Seed003Procedure(_Strict):
+    """The seed 003 calibration procedure (§4.2 and the revised §4.4–4.5)."""
+
+    azimuth_step_deg: float = Field(45.0, gt=0, le=180)
+    zenith_stage_deg: tuple[float, ...] = (0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0)
+    repeats: int = Field(4, ge=1, le=100)
+    centre_repeats: int = Field(5, ge=1, le=100)
+    tilt_stage: bool = True
+    tilt_probe_deg: float = Field(1.0, gt=0, le=5)
+    tilt_repeats: int = Field(3, ge=1, le=100)
+    auto_exposure: AutoExposure = AutoExposure()
+
+    @field_validator("zenith_stage_deg")
+    @classmethod
+    def _zeniths(cls, v):
+        if len(v) < 7:
+            raise ValueError("a 6th-order θ(r) needs at least 7 zenith angles")
+        return v
+
+
+class GridProcedure(_Strict):
+    """A plain grid: every azimuth at every zenith-stage angle."""
+
+    azimuths_deg: tuple[float, ...] = tuple(float(a) for a in range(0, 360, 45))
+    zenith_stage_deg: tuple[float, ...] = (0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0)
+    repeats: int = Field(1, ge=1, le=100)
+    order: Literal["zenith-outer", "azimuth-outer"] = "zenith-outer"
+    auto_exposure: AutoExposure = AutoExposure()
+
+
+class Alignment(_Strict):
+    """Caliper readings of the bench alignment (seed 003 §4.1), checked before anything moves.
+
+    l1/l2: table edge to the rotation mechanism / to the simulator aperture; h1/h2: table to the simulator
+    aperture / to the sensor window; distance: sensor to simulator. Tolerances: 0.5 mm, 0.5 mm, 5 mm.
+    """
+
+    l1_mm: float
+    l2_mm: float
+    h1_mm: float
+    h2_mm: float
+    distance_mm: float
+
+
+class Campaign(_Strict):
+    """A campaign: a procedure run on one sensor or on a fleet (a flight batch is ten)."""
+
+    name: str = Field(min_length=1)
+    plan: Literal["seed003", "grid"] = "seed003"
+    operator: str = "unknown"
+    sensors: tuple[str, ...] = Field(("SIM-0001",), min_length=1)
+    frames: Literal["roi", "full", "none"] = "roi"
+    seed003: Seed003Procedure = Seed003Procedure()
+    grid: GridProcedure = GridProcedure()
+    alignment: Alignment | None = None
+    methods: tuple[str, ...] = tuple(METHODS)
+
+    @field_validator("methods")
+    @classmethod
+    def _methods(cls, v):
+        unknown = [m for m in v if m not in METHODS]
+        if unknown:
+            raise ValueError(f"unknown method(s) {unknown}; known: {list(METHODS)}")
+        return v
+
+    @model_validator(mode="after")
+    def _unique_sensors(self):
+        if len(set(self.sensors)) != len(self.sensors):
+            raise ValueError("`sensors` lists a sensor twice")
+        return self
+
+
+def load_campaign_file(path) -> Campaign:
+    """Read and validate a campaign YAML file."""
+    path = Path(path)
+    try:
+        document = yaml.safe_load(path.read_text())
+    except FileNotFoundError:
+        raise CampaignFileError(f"{path}: no such file") from None
+    except yaml.YAMLError as exc:
+        raise CampaignFileError(f"{path}: not valid YAML ({exc})") from None
+    if not isinstance(document, dict):
+        raise CampaignFileError(f"{path}: expected a mapping at the top level")
+    try:
+        return Campaign.model_validate(document)
+    except ValidationError as exc:
+        problems = "; ".join(f"field {'.'.join(str(p) for p in e['loc']) or '(top level)'}: {e['msg']}"
+                             for e in exc.errors())
+        raise CampaignFileError(f"{path}: {problems}") from None

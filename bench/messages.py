@@ -1,0 +1,151 @@
+"""The small vocabulary of messages a calibration plan yields and the run engine executes.
+
+A plan is a generator of these messages (Bluesky's idea, research note anchors-orchestration lesson 1):
+the same plan can be run by the engine, dry-run by the preflight (which answers with synthetic readings),
+limit-checked and unit-tested by asserting on the messages, with no hardware. The value a plan gets back
+from ``yield`` is the engine's answer (the readings of a ``Measure``, the exposure actually set …).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Generator
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Point:
+    """One table pose of a plan and the frames to take there.
+
+    Attributes
+    ----------
+    key : str
+        Identity of the point within its plan, stable across runs (resume skips keys already recorded).
+    stage : str
+        Which part of the procedure ("centre", "tilt", "grid" …).
+    azimuth_deg : float
+        Azimuth-stage angle [°].
+    zenith_stage_deg : float
+        Zenith-stage angle Ω [°] (the true incidence follows seed 003 eq. 8).
+    repeats : int
+        Frames to take.
+    """
+
+    key: str
+    stage: str
+    azimuth_deg: float
+    zenith_stage_deg: float
+    repeats: int = 1
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One frame's centroid.
+
+    Attributes
+    ----------
+    repeat : int
+    x_px, y_px : float
+        Spot centre [px]; NaN when `status` is not "ok".
+    peak_dn : float
+    n_pixels : int
+    flags : int
+        :class:`calibration.centroid.SpotFlag` bits.
+    status : str
+        "ok" or the name of the centroid error ("NoSpotError", "SaturatedSpotError", "MultipleSpotsError").
+    t_s : float
+        Time of the frame on the bench clock [s].
+    """
+
+    repeat: int
+    x_px: float
+    y_px: float
+    peak_dn: float
+    n_pixels: int
+    flags: int
+    status: str
+    t_s: float = 0.0
+    frame: np.ndarray | None = field(default=None, compare=False, repr=False)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+
+class Msg:
+    """Base class of plan messages."""
+
+
+@dataclass(frozen=True)
+class Log(Msg):
+    message: str
+
+
+@dataclass(frozen=True)
+class LampOn(Msg):
+    """Switch the sun simulator on (no-op if it burns)."""
+
+
+@dataclass(frozen=True)
+class WaitWarm(Msg):
+    """Wait until the lamp is warm."""
+
+
+@dataclass(frozen=True)
+class OpenShutter(Msg):
+    pass
+
+
+@dataclass(frozen=True)
+class CloseShutter(Msg):
+    pass
+
+
+@dataclass(frozen=True)
+class Move(Msg):
+    """Move the table (limits are checked first) and wait until it stops."""
+
+    azimuth_deg: float
+    zenith_stage_deg: float
+
+
+@dataclass(frozen=True)
+class SetExposure(Msg):
+    """Set the sensor's exposure [ms]; the answer is what the sensor set."""
+
+    exposure_ms: float
+
+
+@dataclass(frozen=True)
+class Capture(Msg):
+    """Take frames where the table is and answer their readings (not recorded: probes, auto-exposure)."""
+
+    frames: int = 1
+
+
+@dataclass(frozen=True)
+class Measure(Msg):
+    """A recorded point: a checkpoint, the move, `point.repeats` frames, one catalogue transaction.
+
+    The answer is the point's readings. A point already recorded by this run's lineage is not measured again:
+    the engine answers with the recorded readings.
+    """
+
+    point: Point
+
+
+@dataclass(frozen=True)
+class Record(Msg):
+    """Keep a value the run decided (chosen exposure, tilt-stage result) in the catalogue."""
+
+    key: str
+    value: Any
+
+
+@dataclass(frozen=True)
+class Checkpoint(Msg):
+    """A place where the run may pause (every Measure is one too)."""
+
+
+Plan = Generator[Msg, Any, Any]

@@ -1,0 +1,192 @@
+"""Calibration plans: generators of :mod:`bench.messages`, executed by the run engine.
+
+* :func:`seed003_plan` — the seed 003 procedure: alignment check (preflight), lamp and shutter, auto-exposure,
+  centre stage (8 azimuths × 5 frames at normal incidence), tilt stage of the revised procedure (§4.4–4.5),
+  grid stage (8 azimuths × zenith 0–60° in 10° steps × 4 frames, all azimuths at each zenith).
+* :func:`grid_plan` — a plain grid.
+
+Point keys are built from the stage and the angles only, so a plan expands to the same keys every time and
+a resumed run can skip what its lineage already recorded.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from calibration.design import BenchGeometry
+
+from .campaign import Alignment, AutoExposure, Campaign, GridProcedure, Seed003Procedure
+from .messages import (Capture, CloseShutter, LampOn, Log, Measure, Move, OpenShutter, Plan, Point, Record,
+                       SetExposure, WaitWarm)
+
+# seed 003 §4.1 alignment tolerances
+LATERAL_TOLERANCE_MM = 0.5
+HEIGHT_TOLERANCE_MM = 0.5
+DISTANCE_TOLERANCE_MM = 5.0
+
+
+def point_key(stage: str, azimuth_deg: float, zenith_stage_deg: float) -> str:
+    return f"{stage}/zen={zenith_stage_deg:+08.3f}/az={azimuth_deg:07.3f}"
+
+
+def alignment_violations(alignment: Alignment | None, geometry: BenchGeometry) -> list[str]:
+    """The seed 003 §4.1 alignment checks that fail, each with the corrective move.
+
+    |L1 − L2| ≤ 0.5 mm (move the mechanism by ΔL = L2 − L1), |h1 − h2| ≤ 0.5 mm (Δh = h2 − h1),
+    |L − source distance| ≤ 5 mm.
+    """
+    if alignment is None:
+        return []
+    problems = []
+    if abs(alignment.l1_mm - alignment.l2_mm) > LATERAL_TOLERANCE_MM:
+        problems.append(f"alignment: |L1 − L2| = {abs(alignment.l1_mm - alignment.l2_mm):.2f} mm > "
+                        f"{LATERAL_TOLERANCE_MM} mm; move the mechanism by ΔL = {alignment.l2_mm - alignment.l1_mm:+.2f} mm")
+    if abs(alignment.h1_mm - alignment.h2_mm) > HEIGHT_TOLERANCE_MM:
+        problems.append(f"alignment: |h1 − h2| = {abs(alignment.h1_mm - alignment.h2_mm):.2f} mm > "
+                        f"{HEIGHT_TOLERANCE_MM} mm; move the mechanism by Δh = {alignment.h2_mm - alignment.h1_mm:+.2f} mm")
+    if abs(alignment.distance_mm - geometry.source_distance_mm) > DISTANCE_TOLERANCE_MM:
+        problems.append(f"alignment: sensor-to-simulator distance {alignment.distance_mm:.1f} mm differs from the "
+                        f"bench's {geometry.source_distance_mm:.1f} mm by more than {DISTANCE_TOLERANCE_MM} mm")
+    return problems
+
+
+def auto_exposure(spec: AutoExposure, full_scale_dn: float) -> Plan:
+    """Find an exposure that puts the spot's peak near the target fraction of full scale.
+
+    No spot → ×4; saturated → ÷3; otherwise scale by target / measured (the response is linear). Answers
+    the exposure [ms]; raises :class:`PlanError` when no exposure in range works.
+
+    References
+    ----------
+    seed 003, §4.2 step 0 (raise the exposure when there is no source, lower it on flare); the thesis gives
+    no steps or limits, these are ours.
+    """
+    exposure = spec.start_ms
+    for _ in range(spec.max_steps):
+        exposure = yield SetExposure(exposure)
+        reading = (yield Capture(1))[0]
+        if reading.status == "NoSpotError":
+            wanted = exposure * 4.0
+        elif reading.status == "SaturatedSpotError":
+            wanted = exposure / 3.0
+        elif reading.ok:
+            fraction = reading.peak_dn / full_scale_dn
+            if abs(fraction - spec.target_peak_fraction) <= spec.tolerance * spec.target_peak_fraction:
+                yield Record("exposure_ms", exposure)
+                return exposure
+            wanted = exposure * spec.target_peak_fraction / max(fraction, 1e-3)
+        else:
+            raise PlanError(f"auto-exposure: the frame shows {reading.status}; fix the bench before a run")
+        if (wanted > spec.max_ms and exposure >= spec.max_ms) or (wanted < spec.min_ms and exposure <= spec.min_ms):
+            raise PlanError(f"auto-exposure: no exposure in [{spec.min_ms}, {spec.max_ms}] ms gives a usable spot "
+                            f"(last: {reading.status} at {exposure} ms)")
+        exposure = float(np.clip(wanted, spec.min_ms, spec.max_ms))
+    raise PlanError(f"auto-exposure did not settle in {spec.max_steps} steps")
+
+
+class PlanError(RuntimeError):
+    """A plan cannot go on (no usable exposure, a stage that found nothing)."""
+
+
+def _mean_spot(readings) -> np.ndarray | None:
+    ok = [(r.x_px, r.y_px) for r in readings if r.ok and np.isfinite(r.x_px)]
+    return np.mean(ok, axis=0) if ok else None
+
+
+def centre_stage(azimuths, repeats: int) -> Plan:
+    """Stage 1: normal incidence at every azimuth; answers the centre (x0, y0) [px] or None.
+
+    References
+    ----------
+    seed 003, §4.2 stage 1 (8 azimuths × 5 frames, x0, y0 = the mean of the 40 centres).
+    """
+    readings = []
+    for azimuth in azimuths:
+        readings += (yield Measure(Point(point_key("centre", azimuth, 0.0), "centre", azimuth, 0.0, repeats)))
+    centre = _mean_spot(readings)
+    yield Record("centre_px", None if centre is None else [float(centre[0]), float(centre[1])])
+    return centre
+
+
+def tilt_stage(azimuths, probe_deg: float, repeats: int, centre) -> Plan:
+    """Stage 2 of the revised procedure: along each azimuth, the zenith-stage angle that brings the spot back
+    onto the centre found in stage 1.
+
+    Each azimuth is probed at Ω = ±`probe_deg`; the spot moves along a line, and the angle where its
+    projection crosses the centre is interpolated. The mean offset is the bench's non-parallelism (seed 003
+    found 0.47°), the first harmonic over azimuth the tilt seen along 0° (α) and 90° (β) (eqs. 14–15).
+
+    References
+    ----------
+    seed 003, §4.4–4.5 and Fig. 4.12.
+    """
+    offsets = {}
+    for azimuth in azimuths:
+        spots = []
+        for omega in (-probe_deg, probe_deg):
+            readings = yield Measure(Point(point_key("tilt", azimuth, omega), "tilt", azimuth, omega, repeats))
+            spots.append(_mean_spot(readings))
+        if centre is None or spots[0] is None or spots[1] is None:
+            continue
+        motion = spots[1] - spots[0]
+        if not np.dot(motion, motion) > 0:
+            continue
+        t = float(np.dot(np.asarray(centre) - spots[0], motion) / np.dot(motion, motion))
+        offsets[azimuth] = -probe_deg + 2.0 * probe_deg * t
+    result = None
+    if len(offsets) >= 3:
+        az = np.radians(list(offsets))
+        design = np.column_stack([np.ones(az.size), np.cos(az), np.sin(az)])
+        (mean, alpha, beta), *_ = np.linalg.lstsq(design, np.array(list(offsets.values())), rcond=None)
+        result = {"offsets_deg": {f"{a:g}": v for a, v in offsets.items()}, "mean_offset_deg": float(mean),
+                  "tilt_x_deg": float(alpha), "tilt_y_deg": float(beta)}
+    yield Record("tilt_stage", result)
+    return result
+
+
+def grid_stage(azimuths, zeniths, repeats: int, *, stage: str = "grid", order: str = "zenith-outer") -> Plan:
+    """Stage 2 of seed 003 (3 of the revised procedure): the grid, zenith outer loop and every azimuth at each
+    zenith by default (the optimised order of §4.2).
+
+    References
+    ----------
+    seed 003, §4.2 stage 2 (8 azimuths × zenith 0–60° in 10° steps, 4 frames each).
+    """
+    pairs = ([(z, a) for z in zeniths for a in azimuths] if order == "zenith-outer"
+             else [(z, a) for a in azimuths for z in zeniths])
+    for zenith, azimuth in pairs:
+        yield Measure(Point(point_key(stage, azimuth, zenith), stage, azimuth, zenith, repeats))
+
+
+def _light_up(exposure_spec: AutoExposure, full_scale_dn: float) -> Plan:
+    yield LampOn()
+    yield WaitWarm()
+    yield OpenShutter()
+    yield Move(0.0, 0.0)
+    return (yield from auto_exposure(exposure_spec, full_scale_dn))
+
+
+def seed003_plan(procedure: Seed003Procedure, *, full_scale_dn: float = 1023.0) -> Plan:
+    """The seed 003 calibration procedure (module docstring)."""
+    azimuths = [float(a) for a in np.arange(0.0, 360.0 - 1e-9, procedure.azimuth_step_deg)]
+    yield Log(f"seed 003 procedure: {len(azimuths)} azimuths, zenith stage {list(procedure.zenith_stage_deg)}°")
+    yield from _light_up(procedure.auto_exposure, full_scale_dn)
+    centre = yield from centre_stage(azimuths, procedure.centre_repeats)
+    if procedure.tilt_stage:
+        yield from tilt_stage(azimuths, procedure.tilt_probe_deg, procedure.tilt_repeats, centre)
+    yield from grid_stage(azimuths, procedure.zenith_stage_deg, procedure.repeats)
+    yield CloseShutter()
+
+
+def grid_plan(procedure: GridProcedure, *, full_scale_dn: float = 1023.0) -> Plan:
+    """A plain grid of every azimuth at every zenith-stage angle."""
+    yield from _light_up(procedure.auto_exposure, full_scale_dn)
+    yield from grid_stage(procedure.azimuths_deg, procedure.zenith_stage_deg, procedure.repeats, order=procedure.order)
+    yield CloseShutter()
+
+
+def make_plan(campaign: Campaign, *, full_scale_dn: float = 1023.0) -> Plan:
+    """The plan a campaign names."""
+    if campaign.plan == "seed003":
+        return seed003_plan(campaign.seed003, full_scale_dn=full_scale_dn)
+    return grid_plan(campaign.grid, full_scale_dn=full_scale_dn)

@@ -1,0 +1,136 @@
+"""Preflight: expand a plan without hardware, check every move against the limits, count, estimate.
+
+The plan is driven by a dry executor that answers like the engine would (the exposure asked for, readings
+with no position), so adaptive plans expand too. A plan with any violation is refused, with the list of
+every violation, before anything moves (research note anchors-orchestration, lesson 9).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from drivers.errors import LimitError
+from drivers.sim.motion import trapezoid
+
+from .messages import Capture, Measure, Move, Plan, Point, Reading, SetExposure, WaitWarm
+
+
+@dataclass(frozen=True)
+class TimingModel:
+    """How long things take on the bench, for the duration estimate.
+
+    Attributes
+    ----------
+    rate_deg_s, accel_deg_s2 : float
+        Table axes' speed [°/s] and acceleration [°/s²] (both axes move together).
+    settle_s : float
+        Settling after a move [s].
+    frame_overhead_s : float
+        Read-out, transfer and centroid per frame, beyond the exposure [s].
+    warmup_s : float
+        Lamp warm-up from cold [s].
+    """
+
+    rate_deg_s: float = 10.0
+    accel_deg_s2: float = 20.0
+    settle_s: float = 0.05
+    frame_overhead_s: float = 0.02
+    warmup_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class PreflightReport:
+    """What a plan will do.
+
+    Attributes
+    ----------
+    points : list of Point
+        Every recorded point, in order.
+    n_frames : int
+        Frames of the recorded points plus the probes.
+    n_moves : int
+    duration_s : float
+        Estimated duration [s].
+    violations : list of str
+        Every move outside the limits and every other refusal; empty when the plan may run.
+    """
+
+    points: list[Point]
+    n_frames: int
+    n_moves: int
+    duration_s: float
+    violations: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.violations
+
+
+def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_peak_dn: float = 716.0,
+              exposure_ms: float = 4.0, extra_violations=()) -> PreflightReport:
+    """Expand `plan` with a dry executor.
+
+    Parameters
+    ----------
+    plan : generator of messages
+    check : callable (azimuth_deg, zenith_stage_deg) -> None
+        Raises :class:`~drivers.errors.LimitError` for a pose outside the limits (``RotaryTable.check``).
+    timing : TimingModel
+    dry_peak_dn : float
+        Peak the dry readings report (the auto-exposure target, so it settles at once) [DN].
+    exposure_ms : float
+        Exposure assumed until the plan sets one [ms].
+    extra_violations : iterable of str
+        Refusals found elsewhere (alignment) to report with the limit violations.
+    """
+    points: list[Point] = []
+    violations = list(extra_violations)
+    seen_poses = set()
+    n_frames = n_moves = 0
+    duration = 0.0
+    pose = (0.0, 0.0)
+    exposure = exposure_ms
+
+    def move(azimuth, zenith, label):
+        nonlocal pose, duration, n_moves
+        if (azimuth, zenith) not in seen_poses:
+            seen_poses.add((azimuth, zenith))
+            try:
+                check(azimuth, zenith)
+            except LimitError as exc:
+                violations.append(f"{label} (azimuth {azimuth:g}°, zenith stage {zenith:g}°): {exc}")
+        if (azimuth, zenith) != pose:
+            n_moves += 1
+            duration += max(trapezoid(azimuth - pose[0], timing.rate_deg_s, timing.accel_deg_s2),
+                            trapezoid(zenith - pose[1], timing.rate_deg_s, timing.accel_deg_s2)) + timing.settle_s
+            pose = (azimuth, zenith)
+
+    def frames(n):
+        nonlocal n_frames, duration
+        n_frames += n
+        duration += n * (exposure / 1000.0 + timing.frame_overhead_s)
+        return [Reading(i, float("nan"), float("nan"), dry_peak_dn, 0, 0, "ok") for i in range(n)]
+
+    answer = None
+    while True:
+        try:
+            msg = plan.send(answer)
+        except StopIteration:
+            break
+        answer = None
+        if isinstance(msg, Move):
+            move(msg.azimuth_deg, msg.zenith_stage_deg, "move")
+        elif isinstance(msg, Measure):
+            points.append(msg.point)
+            move(msg.point.azimuth_deg, msg.point.zenith_stage_deg, f"point {msg.point.key}")
+            answer = frames(msg.point.repeats)
+        elif isinstance(msg, Capture):
+            answer = frames(msg.frames)
+        elif isinstance(msg, SetExposure):
+            exposure = answer = msg.exposure_ms
+        elif isinstance(msg, WaitWarm):
+            duration += timing.warmup_s
+    keys = [p.key for p in points]
+    if len(set(keys)) != len(keys):
+        violations.append("plan error: a point key appears twice")
+    return PreflightReport(points, n_frames, n_moves, duration, violations)
