@@ -222,7 +222,7 @@ def demo(
 @_user_errors
 def serve_simulators(
     config: Optional[Path] = typer.Option(None, "--config", "-c", help="Bench YAML file (its `simulation:` "
-                                                                     "section); default: examples/bench-sim.yaml's values."),
+                                                                     "section); default: the simulated bench of examples/bench-sim.yaml."),
     host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
     port: int = typer.Option(0, help="First TCP port (devices get consecutive ports); 0 = any free ports."),
     time_scale: Optional[float] = typer.Option(None, "--time-scale", min=0.0,
