@@ -324,6 +324,8 @@ def _section(data: dict, key: str) -> Any:
     value = data.get(key)
     if value is None:
         return {}
+    if isinstance(value, BaseModel):  # a section handed over already validated
+        return value.model_dump()
     return dict(value) if isinstance(value, dict) else value
 
 

@@ -26,7 +26,12 @@ from calibration.models.physical import PhysicalCalibration
 from calibration.pinhole import PinholeBuild
 from calibration.synthetic import EXAMPLE_BUILD, synthetic_bench_data
 
+from drivers.errors import DeviceError
+
 from .benchfile import BenchFile, BenchFileError, load_bench_file
+from .campaign import CampaignFileError
+from .catalogue import CatalogueError
+from .runner import PreflightRefused
 from .datafile import (DataFileError, calibration_document, read_bench_csv, read_calibration, read_spots_csv,
                        write_applied_csv, write_bench_csv, write_calibration)
 
@@ -52,9 +57,13 @@ def _user_errors(command):
     def wrapper(*args, **kwargs):
         try:
             return command(*args, **kwargs)
-        except (DataFileError, CalibrationError, BenchFileError) as exc:
+        except (DataFileError, CalibrationError, BenchFileError, CampaignFileError, CatalogueError,
+                PreflightRefused) as exc:
             err.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
             raise typer.Exit(2) from None
+        except DeviceError as exc:  # a device that does not answer as it should: not the user's input
+            err.print(f"[bold red]device error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
+            raise typer.Exit(1) from None
         except OSError as exc:
             err.print(f"[bold red]error:[/] {escape(str(exc.filename or ''))}: {escape(str(exc.strerror))}",
                       highlight=False, soft_wrap=True)
@@ -249,6 +258,9 @@ def serve_simulators(
         pass
     finally:
         server.stop()
+
+
+from . import cli_runs  # noqa: E402,F401 - registers run, runs, show, resume, export, fleet
 
 
 def main() -> None:  # pragma: no cover - entry point

@@ -1,0 +1,231 @@
+"""`sunbench run | runs | show | resume | export | fleet`: campaigns on the bench, from the command line."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.markup import escape
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.table import Table
+
+from .benchfile import BenchFile, load_bench_file
+from .campaign import load_campaign_file
+from .cli import _f, _user_errors, app, err, metrics_table, out
+from .datafile import write_bench_csv
+
+DEFAULT_CATALOGUE = Path(os.environ.get("XDG_DATA_HOME", Path.home() / ".local" / "share")) / "sunbench" / "catalogue.sqlite"
+
+CatalogueOption = typer.Option(None, "--catalogue", envvar="SUNBENCH_CATALOGUE",
+                               help=f"SQLite catalogue [default: {DEFAULT_CATALOGUE}].")
+
+
+def _catalogue(path: Optional[Path], *, readonly: bool = False):
+    from .catalogue import Catalogue
+    return Catalogue(path or DEFAULT_CATALOGUE, readonly=readonly)
+
+
+def _session(bench: Optional[Path], catalogue, time_scale: Optional[float]):
+    from .runner import open_session
+    bench_file = load_bench_file(bench) if bench else BenchFile()
+    return open_session(bench_file, catalogue, time_scale=time_scale)
+
+
+class _ProgressView:
+    """A progress bar fed by the engine's point events (point i/N, ETA)."""
+
+    def __init__(self):
+        self.progress = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                                 TextColumn("ETA"), TimeRemainingColumn(), console=err, transient=False)
+        self.task = None
+
+    def on_run(self, run_id, sensor_id):
+        self.task = self.progress.add_task(f"run {run_id} · {sensor_id}", total=None)
+
+    def on_event(self, event):
+        if event.kind == "point" and self.task is not None:
+            self.progress.update(self.task, completed=event.data["index"], total=event.data["total"] or None)
+        elif event.kind in ("paused", "suspended"):
+            self.progress.console.print(f"[yellow]{event.kind}:[/] {escape(event.data.get('reason', ''))}")
+        elif event.kind == "warning":
+            self.progress.console.print(f"[yellow]warning:[/] {escape(event.data.get('message', ''))}")
+
+
+def _abort_on_signals(engine):
+    def handler(signum, frame):  # Ctrl-C or a kill: end the run cleanly, the bench made safe
+        try:
+            engine.abort()
+        except Exception:  # noqa: BLE001 - nothing to abort
+            pass
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+
+
+@app.command("run")
+@_user_errors
+def run_campaign_command(
+    campaign_yaml: Path = typer.Argument(..., help="Campaign file (see examples/seed003.yaml)."),
+    bench: Optional[Path] = typer.Option(None, "--bench", "-b", help="Bench file [default: the simulated bench]."),
+    catalogue: Optional[Path] = CatalogueOption,
+    time_scale: Optional[float] = typer.Option(None, "--time-scale", min=0.0, help="Simulated clock (0 = instant)."),
+    dry_run: bool = typer.Option(False, "--dry-run", help="Only expand and check the plan."),
+) -> None:
+    """Run a calibration campaign; prints the run id alone on its last line."""
+    from .runner import PreflightRefused, check_campaign, run_campaign
+
+    campaign = load_campaign_file(campaign_yaml)
+    with _catalogue(catalogue) as cat:
+        session = _session(bench, cat, time_scale)
+        try:
+            report = check_campaign(campaign, session)
+            out.print(f"preflight: {len(report.points)} points, {report.n_frames} frames, {report.n_moves} moves per "
+                      f"sensor × {len(campaign.sensors)} sensor(s); about {report.duration_s / 60:.1f} min on the bench")
+            if not report.ok:
+                raise PreflightRefused(report.violations)
+            if dry_run:
+                return
+            view = _ProgressView()
+            session.engine.subscribe(view.on_event)
+            _abort_on_signals(session.engine)
+            with view.progress:
+                runs = run_campaign(campaign, session, on_run=view.on_run)
+        finally:
+            session.close()
+        for run_id in runs:
+            _print_run_summary(cat, run_id)
+        if runs:
+            print(runs[-1])
+
+
+def _print_run_summary(cat, run_id: int) -> None:
+    run = cat.run(run_id)
+    out.print(f"run {run_id} ({run['sensor_id']}): {run['status']}"
+              + (f" — {escape(run['exit_reason'])}" if run.get("exit_reason") else ""))
+
+
+@app.command("runs")
+@_user_errors
+def list_runs(catalogue: Optional[Path] = CatalogueOption) -> None:
+    """The runs in the catalogue."""
+    with _catalogue(catalogue, readonly=True) as cat:
+        table = Table(title="Runs")
+        for name in ("run", "campaign", "sensor", "plan", "status", "points", "parent", "started (UTC)"):
+            table.add_column(name)
+        for r in cat.runs():
+            table.add_row(str(r["id"]), str(r["campaign_id"] or ""), r["sensor_id"] or "", r["plan_name"], r["status"],
+                          f"{r.get('n_points', 0)}/{r.get('n_points_planned') or '?'}", str(r["parent_run_id"] or ""),
+                          (r.get("started_utc") or "")[:19])
+        out.print(table)
+
+
+@app.command("show")
+@_user_errors
+def show_run(run_id: int = typer.Argument(...), catalogue: Optional[Path] = CatalogueOption) -> None:
+    """A run: status, provenance, stages, calibrations with their accuracy."""
+    from calibration.evaluation import AccuracyMetrics, MethodReport
+
+    with _catalogue(catalogue, readonly=True) as cat:
+        run = cat.run(run_id)
+        out.print(f"[bold]run {run_id}[/] · sensor {run['sensor_id']} · plan {run['plan_name']} · {run['status']}"
+                  + (f" ({escape(run['exit_reason'])})" if run.get("exit_reason") else ""))
+        lineage = cat.lineage(run_id)
+        if len(lineage) > 1:
+            out.print(f"lineage: runs {' → '.join(map(str, lineage))}")
+        out.print(f"points recorded (lineage): {len(cat.completed_keys(lineage))} of {run['n_points_planned'] or '?'}")
+        prov = run["provenance"]
+        out.print(f"provenance: {'simulated' if prov.get('simulated') else 'real'} bench, config {prov.get('bench_config_hash', '')[:12]}, "
+                  f"sunbench {prov.get('software_version')}, operator {prov.get('operator')}")
+        for role, identity in (prov.get("devices") or {}).items():
+            out.print(f"  {role}: {escape(str(identity))}")
+        for key in ("exposure_ms", "centre_px", "tilt_stage"):
+            value = cat.run_value(run_id, key)
+            if value is not None:
+                out.print(f"{key}: {escape(json.dumps(value))}")
+        reports, chosen = [], None
+        for c in cat.calibrations(run_id):
+            m = c["metrics"]
+            fitted = AccuracyMetrics(**m["fitted"]) if m.get("fitted") else None
+            heldout = AccuracyMetrics(**m["heldout"]) if m.get("heldout") else None
+            reports.append(MethodReport(c["method"], object(), fitted, heldout, m.get("error")))
+            chosen = c["method"] if c["chosen"] else chosen
+        if reports:
+            out.print(metrics_table(reports, chosen))
+
+
+@app.command("resume")
+@_user_errors
+def resume_command(
+    run_id: int = typer.Argument(..., help="The interrupted run."),
+    bench: Optional[Path] = typer.Option(None, "--bench", "-b", help="Bench file [default: the simulated bench]."),
+    catalogue: Optional[Path] = CatalogueOption,
+    time_scale: Optional[float] = typer.Option(None, "--time-scale", min=0.0, help="Simulated clock (0 = instant)."),
+) -> None:
+    """Start a new run linked to RUN that measures only the missing points; prints its id on the last line."""
+    from .runner import resume_run
+
+    with _catalogue(catalogue) as cat:
+        cat.mark_interrupted_runs()
+        session = _session(bench, cat, time_scale)
+        try:
+            view = _ProgressView()
+            session.engine.subscribe(view.on_event)
+            _abort_on_signals(session.engine)
+            with view.progress:
+                new_id = resume_run(run_id, session, on_run=view.on_run)
+        finally:
+            session.close()
+        _print_run_summary(cat, new_id)
+        print(new_id)
+
+
+@app.command("export")
+@_user_errors
+def export_run(
+    run_id: int = typer.Argument(...),
+    format: str = typer.Option("csv", "--format", "-f", help="csv (the bench data CSV `sunbench fit` reads) or json."),
+    output: Optional[Path] = typer.Option(None, "--output", "-o", help="File to write [default: stdout]."),
+    catalogue: Optional[Path] = CatalogueOption,
+) -> None:
+    """Export a run (with the runs it resumed) as bench data CSV or as JSON."""
+    from .runner import bench_data
+
+    if format not in ("csv", "json"):
+        raise typer.BadParameter("--format must be csv or json")
+    with _catalogue(catalogue, readonly=True) as cat:
+        run = cat.run(run_id)
+        lineage = cat.lineage(run_id)
+        if format == "csv":
+            data = bench_data(cat, lineage, sensor_id=run["sensor_id"])
+            target = output or Path("/dev/stdout")
+            write_bench_csv(target, data)
+        else:
+            document = {"run": run, "lineage": lineage, "points": cat.points(lineage), "readings": cat.readings(lineage),
+                        "calibrations": cat.calibrations(run_id), "events": cat.events(run_id)}
+            text = json.dumps(document, indent=2, default=str)
+            if output:
+                output.write_text(text + "\n")
+            else:
+                print(text)
+        if output:
+            err.print(f"run {run_id} exported to {escape(str(output))}")
+
+
+@app.command("fleet")
+@_user_errors
+def fleet_command(campaign_id: int = typer.Argument(...), catalogue: Optional[Path] = CatalogueOption) -> None:
+    """One row per sensor of a fleet campaign, in the columns of seed 003 Table 6.1 (held out)."""
+    with _catalogue(catalogue, readonly=True) as cat:
+        campaign = cat.campaign(campaign_id)
+        table = Table(title=f"Campaign {campaign_id} ({escape(campaign['name'])}): accuracy held out [°]")
+        for name in ("No.", "sensor", "status", "run", "method", "RMS zenith", "RMS azimuth", "RMS vector"):
+            table.add_column(name, justify="right" if name.startswith("RMS") else "left")
+        for i, row in enumerate(cat.fleet(campaign_id), 1):
+            h = ((row.get("metrics") or {}).get("heldout")) or {}
+            table.add_row(str(i), row["sensor_id"], row["status"], str(row.get("run_id") or ""), row.get("method") or "",
+                          _f(h.get("rms_zenith_deg", float("nan"))), _f(h.get("rms_azimuth_deg", float("nan"))),
+                          _f(h.get("rms_vector_deg", float("nan"))))
+        out.print(table)
