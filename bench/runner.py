@@ -12,6 +12,7 @@ from importlib import metadata
 
 import numpy as np
 
+from calibration.centroid import SpotFlag
 from calibration.data import BenchData
 from calibration.evaluation import best_method, compare_methods
 from .campaign import Campaign
@@ -85,8 +86,15 @@ def check_campaign(campaign: Campaign, session: Session) -> PreflightReport:
 
 
 def bench_data(catalogue, run_ids, *, sensor_id: str | None = None) -> BenchData:
-    """The bench data of runs: one point per good frame, true angles from the bench geometry (seed 003 eq. 8)."""
-    rows = [r for r in catalogue.readings(run_ids) if r["status"] == "ok" and r["x_px"] is not None]
+    """The bench data of runs: one point per good frame, true angles from the bench geometry (seed 003 eq. 8).
+
+    Frames whose centroid failed, or whose spot touches the frame's edge (a clipped spot's centre is
+    biased), stay in the catalogue but are left out.
+    """
+    # a spot cut by the frame's edge has a biased centre: recorded, but not fitted
+    unusable = int(SpotFlag.NEAR_EDGE | SpotFlag.ROI_CLIPPED)
+    rows = [r for r in catalogue.readings(run_ids)
+            if r["status"] == "ok" and r["x_px"] is not None and not (r["flags"] or 0) & unusable]
     if not rows:
         from calibration.errors import InsufficientDataError
         raise InsufficientDataError(f"runs {list(run_ids)} recorded no usable frame")

@@ -70,7 +70,9 @@ _PHYSICAL_BODY = """\
 static inline void sunbench_sun_direction(double x_px, double y_px, double *zenith_deg, double *azimuth_deg) {
     double ux = -(x_px - SB_X0_PX) * SB_PIXEL_PITCH_MM;
     double uy = -SB_HANDEDNESS * (y_px - SB_Y0_PX) * SB_PIXEL_PITCH_MM;
-    double r = sqrt(ux * ux + uy * uy), n2 = SB_GLASS_INDEX * SB_GLASS_INDEX;
+    double rm = sqrt(ux * ux + uy * uy), r = rm, n2 = SB_GLASS_INDEX * SB_GLASS_INDEX;
+    if (rm > 0.0) /* undo the non-round aperture's stretch (it keeps the direction) */
+        r = rm / (1.0 + SB_APERTURE_C * (ux * ux - uy * uy) / (rm * rm) + SB_APERTURE_S * 2.0 * ux * uy / (rm * rm));
     double th = atan(r / (SB_GAP_MM + SB_GLASS_MM / SB_GLASS_INDEX));
     for (int i = 0; i < 8; ++i) {  /* Newton on r = g tan(th) + t tan(asin(sin(th) / n)) */
         double s = sin(th), c = cos(th), root = sqrt(n2 - s * s);
@@ -80,7 +82,7 @@ static inline void sunbench_sun_direction(double x_px, double y_px, double *zeni
         if (th < 0.0) th = 0.0;
         if (th > 89.9 * SB_RAD) th = 89.9 * SB_RAD;
     }
-    double k = r > 0.0 ? sin(th) / r : 0.0;
+    double k = rm > 0.0 ? sin(th) / rm : 0.0;
     double d[3] = {ux * k, uy * k, cos(th)}, s[3];
     for (int i = 0; i < 3; ++i)
         s[i] = SB_DETECTOR[i][0] * d[0] + SB_DETECTOR[i][1] * d[1] + SB_DETECTOR[i][2] * d[2];
@@ -112,8 +114,14 @@ def _seed003_header(cal: Seed003Calibration) -> tuple[list[str], str]:
                    "  /* eqs. 15-16 */")
     if isinstance(cal, Seed003SectorCalibration):
         rows = [_array(c if len(c) else cal.zenith_coefficients) for c in cal.sector_coefficients]
+        reach = cal.sector_radius_max_px or (float("inf"),) * 8
         constants.append("static const double SB_SECTOR_COEF[8][7] = {\n    " + ",\n    ".join(rows) + "};")
-        zenith = "sb_poly6(SB_SECTOR_COEF[((int)floor(phi / 45.0)) % 8], r / SB_RADIUS_SCALE_PX)  /* §4.5 */"
+        constants.append("/* beyond its fitted radius a sector hands over to the pooled polynomial */")
+        constants.append("static const double SB_SECTOR_REACH_PX[8] = "
+                         + _array(x * 1.01 if len(c) else -1.0 for x, c in zip(reach, cal.sector_coefficients)) + ";")
+        zenith = ("(r <= SB_SECTOR_REACH_PX[((int)floor(phi / 45.0)) % 8] ? "
+                  "sb_poly6(SB_SECTOR_COEF[((int)floor(phi / 45.0)) % 8], r / SB_RADIUS_SCALE_PX) : "
+                  "sb_poly6(SB_ZENITH_COEF, r / SB_RADIUS_SCALE_PX))  /* §4.5 */")
     return constants, _SEED003_BODY.replace("ZENITH_EXPRESSION", zenith)
 
 
@@ -127,6 +135,8 @@ def _physical_header(cal: PhysicalCalibration) -> tuple[list[str], str]:
         f"static const double SB_GLASS_INDEX = {_num(cal.glass_index)};",
         f"static const double SB_PIXEL_PITCH_MM = {_num(cal.pixel_pitch_mm)};",
         f"static const double SB_HANDEDNESS = {'-1.0' if cal.mirrored else '1.0'};",
+        f"static const double SB_APERTURE_C = {_num(cal.aperture_c)};",
+        f"static const double SB_APERTURE_S = {_num(cal.aperture_s)};",
         f"/* detector tilt alpha = {cal.tilt_x_deg!r} deg, beta = {cal.tilt_y_deg!r} deg, "
         f"in-plane rotation = {cal.rotation_deg!r} deg */",
         "static const double SB_DETECTOR[3][3] = {\n    " + ",\n    ".join(_array(row) for row in m) + "};",

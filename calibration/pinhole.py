@@ -12,6 +12,10 @@ where c = (x0, y0) is the foot of the perpendicular from the pinhole on the dete
 pitch. The radial distance is r = g tan θ + t tan θ_g (Snell refraction in the glass). With t = 0 this is
 the ideal pinhole of seed 003 eq. 6, θ = arctan(r / L).
 
+A slightly non-round pinhole (seed 003 §4.5, error source 13) stretches the spot's offset with its
+azimuth φ_d in the detector frame: r → r (1 + a_c cos 2φ_d + a_s sin 2φ_d), an ellipse of the aperture's
+effective shape; the two coefficients are linear and well conditioned, unlike an (amplitude, angle) pair.
+
 The detector orientation in the body frame is M = R_y(α) · R_x(−β) · R_z(ψ): an in-plane rotation ψ,
 then the tilt α that tips the detector normal toward azimuth 0° and β toward azimuth 90° (the α, β
 convention of seed 003 eqs. 14–15). A body-frame direction s is seen in the detector frame as Mᵀ s.
@@ -51,6 +55,8 @@ class PinholeBuild:
         In-plane rotation ψ of the detector [°].
     mirrored : bool
         True when the detector rows run against the body +y axis (a mirrored read-out).
+    aperture_c, aperture_s : float
+        Non-round aperture: the offset stretches by 1 + a_c cos 2φ_d + a_s sin 2φ_d [unitless].
     """
 
     x0_px: float = 319.5
@@ -62,6 +68,8 @@ class PinholeBuild:
     tilt_y_deg: float = 0.0
     rotation_deg: float = 0.0
     mirrored: bool = False
+    aperture_c: float = 0.0
+    aperture_s: float = 0.0
 
     def __post_init__(self) -> None:
         if not self.gap_mm > 0:
@@ -133,6 +141,15 @@ def _spot_scale_mm(cos_incidence, gap_mm, glass_mm, glass_index):
     return gap_mm / cos_incidence + glass_mm / (glass_index * cos_glass)
 
 
+def _aperture_stretch(dx, dy, build: PinholeBuild):
+    """1 + a_c cos 2φ + a_s sin 2φ for the in-plane direction (dx, dy) (1 where it is undefined)."""
+    rho2 = dx * dx + dy * dy
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos2 = np.where(rho2 > 0, (dx * dx - dy * dy) / rho2, 0.0)
+        sin2 = np.where(rho2 > 0, 2.0 * dx * dy / rho2, 0.0)
+    return 1.0 + build.aperture_c * cos2 + build.aperture_s * sin2
+
+
 def spot_from_direction(zenith_deg, azimuth_deg, build: PinholeBuild, pixel_pitch_mm: float):
     """Where the spot lands for a sun direction given in the body frame.
 
@@ -163,6 +180,8 @@ def spot_from_vectors(s: np.ndarray, build: PinholeBuild, pixel_pitch_mm: float)
     m = detector_rotation(build.tilt_x_deg, build.tilt_y_deg, build.rotation_deg)
     sd = s @ m  # rows: Mᵀ s
     k = _spot_scale_mm(sd[..., 2], build.gap_mm, build.glass_mm, build.glass_index) / pixel_pitch_mm
+    if build.aperture_c or build.aperture_s:
+        k = k * _aperture_stretch(sd[..., 0], sd[..., 1], build)
     handed = -1.0 if build.mirrored else 1.0
     # the pinhole inverts the image: the spot moves away from the sun's azimuth
     return build.x0_px - k * sd[..., 0], build.y0_px - handed * k * sd[..., 1]
@@ -184,9 +203,10 @@ def direction_from_spot(x_px, y_px, build: PinholeBuild, pixel_pitch_mm: float):
     ux = -(np.asarray(x_px, dtype=float) - build.x0_px) * pixel_pitch_mm
     uy = -handed * (np.asarray(y_px, dtype=float) - build.y0_px) * pixel_pitch_mm
     r = np.hypot(ux, uy)
-    th = np.radians(incidence_from_radial_offset(r, build.gap_mm, build.glass_mm, build.glass_index))
+    radial = r / _aperture_stretch(ux, uy, build) if (build.aperture_c or build.aperture_s) else r
+    th = np.radians(incidence_from_radial_offset(radial, build.gap_mm, build.glass_mm, build.glass_index))
     with np.errstate(invalid="ignore", divide="ignore"):
-        scale = np.where(r > 0, np.sin(th) / r, 0.0)
+        scale = np.where(r > 0, np.sin(th) / r, 0.0)  # the stretch keeps the direction of (ux, uy)
     sd = np.stack([ux * scale, uy * scale, np.cos(th)], axis=-1)
     m = detector_rotation(build.tilt_x_deg, build.tilt_y_deg, build.rotation_deg)
     return zenith_azimuth_from_vector(sd @ m.T)

@@ -27,7 +27,8 @@ from ..pinhole import PinholeBuild, direction_from_spot, spot_from_vectors
 from .base import Calibration
 
 #: Parameters fitted, in the order of the parameter vector (``glass_index`` only when asked).
-FITTED = ("x0_px", "y0_px", "gap_mm", "glass_mm", "tilt_x_deg", "tilt_y_deg", "rotation_deg")
+FITTED = ("x0_px", "y0_px", "gap_mm", "glass_mm", "tilt_x_deg", "tilt_y_deg", "rotation_deg", "aperture_c",
+          "aperture_s")
 
 
 def _initial_build(data: BenchData, design: SensorDesign, glass_index: float) -> PinholeBuild:
@@ -67,7 +68,8 @@ class PhysicalCalibration(Calibration):
 
     Attributes
     ----------
-    x0_px, y0_px, gap_mm, glass_mm, glass_index, tilt_x_deg, tilt_y_deg, rotation_deg, mirrored
+    x0_px, y0_px, gap_mm, glass_mm, glass_index, tilt_x_deg, tilt_y_deg, rotation_deg, mirrored,
+    aperture_c, aperture_s
         The fitted build (:class:`~calibration.pinhole.PinholeBuild`); units in the names.
     pixel_pitch_mm : float
         Pixel pitch the model was fitted with [mm] (given, not fitted: it sets the length scale).
@@ -94,6 +96,8 @@ class PhysicalCalibration(Calibration):
     rotation_deg: float
     mirrored: bool
     pixel_pitch_mm: float
+    aperture_c: float = 0.0
+    aperture_s: float = 0.0
     uncertainties: dict = dataclasses.field(default_factory=dict)
     correlation: tuple = ()
     fitted: tuple = FITTED
@@ -102,7 +106,8 @@ class PhysicalCalibration(Calibration):
     @property
     def build(self) -> PinholeBuild:
         return PinholeBuild(self.x0_px, self.y0_px, self.gap_mm, self.glass_mm, self.glass_index,
-                            self.tilt_x_deg, self.tilt_y_deg, self.rotation_deg, self.mirrored)
+                            self.tilt_x_deg, self.tilt_y_deg, self.rotation_deg, self.mirrored,
+                            self.aperture_c, self.aperture_s)
 
     @classmethod
     def fit(cls, data: BenchData, design: SensorDesign = DEFAULT_SENSOR, *, glass_index: float = 1.52,
@@ -137,8 +142,8 @@ class PhysicalCalibration(Calibration):
             return np.concatenate([x, y]) - measured
 
         p0 = np.array([getattr(start, n) for n in names], dtype=float)
-        lower = np.array([-np.inf, -np.inf, 1e-3, 0.0, -10.0, -10.0, -np.inf] + ([1.0] if fit_index else []))
-        upper = np.array([np.inf, np.inf, 10.0, 10.0, 10.0, 10.0, np.inf] + ([3.0] if fit_index else []))
+        lower = np.array([-np.inf, -np.inf, 1e-3, 0.0, -10.0, -10.0, -np.inf, -0.1, -0.1] + ([1.0] if fit_index else []))
+        upper = np.array([np.inf, np.inf, 10.0, 10.0, 10.0, 10.0, np.inf, 0.1, 0.1] + ([3.0] if fit_index else []))
         result = least_squares(residuals, p0, bounds=(lower, upper), x_scale="jac", method="trf",
                                xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=2000)
         if not result.success:

@@ -229,33 +229,40 @@ class Seed003SectorCalibration(Seed003Calibration):
     ----------
     sector_coefficients : tuple of tuple of float
         Eight coefficient sets in u = r / radius_scale_px [°], or () for "use the pooled polynomial".
+    sector_radius_max_px : tuple of float
+        Largest radius each sector was fitted to [px]; beyond it the pooled polynomial answers, since a
+        6th-order polynomial must not extrapolate.
     """
 
     method: ClassVar[str] = "seed003-sector"
 
     sector_coefficients: tuple = ()
+    sector_radius_max_px: tuple = ()
 
     @classmethod
     def fit(cls, data: BenchData, design: SensorDesign = DEFAULT_SENSOR) -> "Seed003SectorCalibration":
         x0, y0, r, _, b1, b0, scale = cls._fit_common(data)
         pooled, _ = fit_zenith_polynomial(r, data.zenith_deg, radius_scale_px=scale)
-        sectors = []
+        sectors, reach = [], []
         for k in range(8):
             from_lo = np.mod(data.azimuth_deg - k * SECTOR_DEG, 360.0)
             inside = (from_lo <= SECTOR_DEG + 0.5) | (from_lo >= 360.0 - 0.5) | data.normal_incidence
             if np.unique(np.round(data.zenith_deg[inside], 3)).size <= ZENITH_ORDER:
                 sectors.append(())
+                reach.append(0.0)
                 continue
             coef, _ = fit_zenith_polynomial(r[inside], data.zenith_deg[inside], radius_scale_px=scale)
             sectors.append(tuple(coef))
-        return cls(x0, y0, tuple(pooled), scale, b1, b0, tuple(sectors))
+            reach.append(float(r[inside].max()))
+        return cls(x0, y0, tuple(pooled), scale, b1, b0, tuple(sectors), tuple(reach))
 
     def apply(self, x_px, y_px):
         r, azimuth = self._radius_and_azimuth(x_px, y_px)
         zenith = zenith_polynomial(r, self.zenith_coefficients, self.radius_scale_px)
         sector = sector_of(azimuth)
+        reach = self.sector_radius_max_px or (np.inf,) * len(self.sector_coefficients)
         for k, coef in enumerate(self.sector_coefficients):
-            pick = sector == k
-            if len(coef) and pick.any():
+            pick = (sector == k) & (r <= reach[k] * 1.01)
+            if len(coef) and np.any(pick):
                 zenith = np.where(pick, zenith_polynomial(r, coef, self.radius_scale_px), zenith)
         return _direction(zenith, azimuth)

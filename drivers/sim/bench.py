@@ -68,7 +68,7 @@ class BuildConfig(_Strict):
 class SensorConfig(_Strict):
     serial: str = "SIM-0001"
     build: BuildConfig = BuildConfig()
-    aperture_ellipticity: float = Field(0.0002, ge=0, lt=0.1)
+    aperture_ellipticity: float = Field(0.002, ge=0, lt=0.1)
     aperture_axis_deg: float = 20.0
 
 

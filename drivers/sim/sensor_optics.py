@@ -1,8 +1,8 @@
 """What the simulated CMOS pinhole sensor sees: a frame rendered from the world's truth.
 
 The spot lands where the sensor's true build puts the sun direction the table set (calibration.pinhole,
-the same forward model the physical calibration fits), stretched slightly with azimuth by a non-round
-pinhole. Its shape is the pinhole's shadow (a disk of the hole's diameter: the mask is parallel to the
+the same forward model the physical calibration fits), including the slight stretch with azimuth of a
+non-round pinhole. Its shape is the pinhole's shadow (a disk of the hole's diameter: the mask is parallel to the
 pixels, so the shadow keeps its size at any incidence) blurred by the image of the 0.5° source, which
 stretches radially with incidence. Its brightness follows the lamp through the shutter, the exposure,
 the aperture's projected area (cos θ) and the pixels' angular response. The detector adds a bias, dark
@@ -91,10 +91,7 @@ class SpotRenderer:
         """Spot centre [px], the sun's body zenith and azimuth, and its incidence on the detector [°]."""
         truth = self.world.sensor
         zenith, azimuth = self.world.sun_direction_body()
-        x, y = spot_from_direction(zenith, azimuth, truth.build, truth.design.pixel_pitch_mm)
-        stretch = 1.0 + truth.aperture_ellipticity * np.cos(2 * np.radians(azimuth - truth.aperture_axis_deg))
-        x = truth.build.x0_px + (x - truth.build.x0_px) * stretch
-        y = truth.build.y0_px + (y - truth.build.y0_px) * stretch
+        x, y = spot_from_direction(zenith, azimuth, truth.optics, truth.design.pixel_pitch_mm)
         m = detector_rotation(truth.build.tilt_x_deg, truth.build.tilt_y_deg, truth.build.rotation_deg)
         s = np.array([np.sin(np.radians(zenith)) * np.cos(np.radians(azimuth)),
                       np.sin(np.radians(zenith)) * np.sin(np.radians(azimuth)), np.cos(np.radians(zenith))])

@@ -15,6 +15,7 @@ incidence angle.
 
 from __future__ import annotations
 
+import dataclasses
 import zlib
 from dataclasses import dataclass, field
 
@@ -59,8 +60,8 @@ class SensorTruth:
     design : SensorDesign
         Detector size, pitch, bit depth.
     aperture_ellipticity : float
-        Relative stretch of the spot offset with azimuth, 1 + e cos 2(φ − φ_e): a slightly non-round pinhole
-        (seed 003 §4.5) [unitless].
+        Relative stretch of the spot offset with its azimuth on the detector, 1 + e cos 2(φ − φ_e): a slightly
+        non-round pinhole (seed 003 §4.5) [unitless].
     aperture_axis_deg : float
         φ_e [°].
     serial : str
@@ -68,9 +69,15 @@ class SensorTruth:
 
     build: PinholeBuild = EXAMPLE_BUILD
     design: SensorDesign = DEFAULT_SENSOR
-    aperture_ellipticity: float = 0.0002
+    aperture_ellipticity: float = 0.002
     aperture_axis_deg: float = 20.0
     serial: str = "SIM-0001"
+
+    @property
+    def optics(self) -> PinholeBuild:
+        """The build with the non-round aperture as the pinhole model's stretch coefficients."""
+        e, axis = self.aperture_ellipticity, np.radians(2.0 * self.aperture_axis_deg)
+        return dataclasses.replace(self.build, aperture_c=e * np.cos(axis), aperture_s=e * np.sin(axis))
 
 
 @dataclass

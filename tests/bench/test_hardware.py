@@ -24,7 +24,7 @@ def _spot_matches_the_world(devices) -> tuple[float, float]:
     """Capture a frame; its spot must be where the simulated world puts the sun."""
     spot = find_spot(devices.sensor.capture(), saturation_dn=1023)
     world = devices.sim.world
-    measured = direction_from_spot(spot.x_px, spot.y_px, world.sensor.build, world.sensor.design.pixel_pitch_mm)
+    measured = direction_from_spot(spot.x_px, spot.y_px, world.sensor.optics, world.sensor.design.pixel_pitch_mm)
     assert angular_error_deg(*world.sun_direction_body(), *measured) < 0.05
     return spot.x_px, spot.y_px
 

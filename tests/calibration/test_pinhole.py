@@ -79,3 +79,18 @@ def test_build_validation():
         PinholeBuild(gap_mm=0.0)
     with pytest.raises(ValueError, match="glass_index"):
         PinholeBuild(glass_index=0.9)
+
+
+def test_non_round_aperture_stretches_the_offset_and_inverts_exactly():
+    round_ = PinholeBuild(x0_px=320.0, y0_px=240.0, gap_mm=1.2, glass_mm=0.3)
+    oval = PinholeBuild(x0_px=320.0, y0_px=240.0, gap_mm=1.2, glass_mm=0.3, aperture_c=0.004, aperture_s=-0.002)
+    zen, az = np.full(4, 40.0), np.array([0.0, 45.0, 90.0, 135.0])
+    x0, y0 = spot_from_direction(zen, az, round_, PITCH)
+    x1, y1 = spot_from_direction(zen, az, oval, PITCH)
+    ratio = np.hypot(x1 - 320, y1 - 240) / np.hypot(x0 - 320, y0 - 240)
+    # detector azimuths of the spot are 180°, 225°, 270°, 315°: cos 2φ = 1, 0, −1, 0 and sin 2φ = 0, 1, 0, −1
+    np.testing.assert_allclose(ratio, [1.004, 0.998, 0.996, 1.002], atol=1e-12)
+    rng = np.random.default_rng(2)
+    zen, az = rng.uniform(0, 65, 500), rng.uniform(0, 360, 500)
+    back = direction_from_spot(*spot_from_direction(zen, az, oval, PITCH), oval, PITCH)
+    assert angular_error_deg(zen, az, *back).max() < 1e-9

@@ -70,7 +70,7 @@ def test_drivers_on_the_simulated_bench(table_kind, source_kind):
             spot = find_spot(sensor.capture(), saturation_dn=1023)
             truth = world.sun_direction_body()
             s = world.sensor
-            measured = direction_from_spot(spot.x_px, spot.y_px, s.build, s.design.pixel_pitch_mm)
+            measured = direction_from_spot(spot.x_px, spot.y_px, s.optics, s.design.pixel_pitch_mm)
             assert angular_error_deg(*truth, *measured) < 0.05  # the spot is where the world says
             seen.append((spot.x_px, spot.y_px))
         assert len({(round(x), round(y)) for x, y in seen}) == 3  # and it moved with the table
