@@ -188,9 +188,9 @@ def test_insufficient_data_is_refused_with_a_reason():
 
 def test_physical_recovers_a_non_round_aperture():
     truth = dataclasses.replace(BUILD, aperture_c=0.0017, aperture_s=-0.0011)
-    data = synthetic_bench_data(truth, noise_px=0.02, seed=9)
-    cal = PhysicalCalibration.fit(data.direction_means())
+    data = synthetic_bench_data(truth, noise_px=0.02, seed=9).direction_means()
+    cal = PhysicalCalibration.fit(data)
     for name in ("aperture_c", "aperture_s", "gap_mm", "tilt_x_deg"):
         assert abs(getattr(cal, name) - getattr(truth, name)) <= 3 * cal.uncertainties[name], name
-    basic = Seed003Calibration.fit(data.direction_means())
+    basic = Seed003Calibration.fit(data)
     assert _rms_vector(cal, data) < 0.01 < _rms_vector(basic, data)
