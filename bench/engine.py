@@ -22,8 +22,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calibration.centroid import CentroidError, find_spot
-from drivers.errors import DeviceError
-
 from .messages import (Capture, Checkpoint, CloseShutter, LampOn, Log, Measure, Move, OpenShutter, Plan, Reading,
                        Record, SetExposure, WaitWarm)
 
@@ -401,17 +399,16 @@ class RunEngine:
 
     # -- checkpoints, pause, interlocks -----------------------------------------------------------------
     def _interlock_tripped(self) -> str | None:
+        """The reason the bench must not measure now, or None. A device that cannot be asked raises: a run
+        whose safety cannot be checked fails (and is made safe) rather than waiting for an answer."""
         lock = self.interlocks
-        try:
-            if lock.enclosure_open is not None and lock.enclosure_open():
-                return "enclosure open"
-            if lock.lamp_fault and self._lamp_wanted and self.devices.source.status().fault:
-                return "lamp fault"
-            temperature = self.devices.sensor.temperature_c()
-            if np.isfinite(temperature) and temperature > lock.sensor_max_temperature_c:
-                return f"sensor over temperature ({temperature:.1f} °C > {lock.sensor_max_temperature_c} °C)"
-        except DeviceError as exc:
-            return f"interlock check failed: {exc}"
+        if lock.enclosure_open is not None and lock.enclosure_open():
+            return "enclosure open"
+        if lock.lamp_fault and self._lamp_wanted and self.devices.source.status().fault:
+            return "lamp fault"
+        temperature = self.devices.sensor.temperature_c()
+        if np.isfinite(temperature) and temperature > lock.sensor_max_temperature_c:
+            return f"sensor over temperature ({temperature:.1f} °C > {lock.sensor_max_temperature_c} °C)"
         return None
 
     def _checkpoint(self) -> None:

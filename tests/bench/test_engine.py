@@ -1,0 +1,207 @@
+"""The run engine on the simulated bench: accuracy end to end, pause/resume, interlocks, abort, faults."""
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from bench.benchfile import BenchFile
+from bench.campaign import Campaign, Seed003Procedure
+from bench.catalogue import Catalogue
+from bench.engine import EngineState, IllegalTransition
+from bench.runner import PreflightRefused, bench_data, open_session, run_campaign
+from calibration.centroid import SpotFlag
+from calibration.geometry import angular_error_deg, incidence_from_stage_angle
+from calibration.models import calibration_from_dict
+from drivers.sim.bench import SimBenchConfig
+
+SMALL = Campaign(name="small", frames="none", seed003=Seed003Procedure(
+    azimuth_step_deg=90.0, repeats=1, centre_repeats=1, tilt_stage=False))
+
+
+@pytest.fixture
+def session(tmp_path):
+    catalogue = Catalogue(tmp_path / "catalogue.sqlite")
+    s = open_session(BenchFile(simulation=SimBenchConfig(time_scale=0.0, seed=5)), catalogue)
+    yield s
+    s.close()
+    catalogue.close()
+
+
+def _run_in_thread(session, campaign):
+    result = {}
+    thread = threading.Thread(target=lambda: result.setdefault("runs", run_campaign(campaign, session)))
+    thread.start()
+    return thread, result
+
+
+def _wait_for(predicate, timeout_s=20.0):
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.002)
+
+
+def test_seed003_campaign_end_to_end_accuracy(session):
+    """The issue's acceptance test: the chosen calibration is ≤ 0.03° on held-out directions, while the seed 003
+    basic method lands in the thesis' range."""
+    campaign = Campaign(name="seed003", frames="roi")
+    (run_id,) = run_campaign(campaign, session)
+    catalogue = session.catalogue
+    assert catalogue.run(run_id)["status"] == "completed"
+    calibrations = {c["method"]: c for c in catalogue.calibrations(run_id)}
+    chosen = next(c for c in calibrations.values() if c["chosen"])
+    assert chosen["method"] == "physical"
+    assert chosen["metrics"]["heldout"]["rms_vector_deg"] <= 0.03
+    basic = calibrations["seed003"]["metrics"]["heldout"]["rms_vector_deg"]
+    assert 0.1 <= basic <= 0.7, basic  # a few tenths of a degree, as seed 003 Table 4.1
+    # and on directions the grid never visited, measured afresh on the bench
+    cal = calibration_from_dict(chosen["document"])
+    table, sensor, geometry = session.devices.table, session.devices.sensor, session.bench_file.bench_geometry()
+    session.devices.source.open_shutter()
+    rng = np.random.default_rng(1)
+    errors = []
+    for azimuth, omega in zip(rng.uniform(0, 360, 12), rng.uniform(3, 55, 12)):
+        table.move_to(azimuth, omega)
+        from calibration.centroid import find_spot
+        spot = find_spot(sensor.capture(), saturation_dn=1023)
+        zenith = float(incidence_from_stage_angle(omega, geometry.lever_arm_mm, geometry.source_distance_mm))
+        errors.append(float(angular_error_deg(zenith, azimuth, *cal.apply(spot.x_px, spot.y_px))))
+    assert np.sqrt(np.mean(np.square(errors))) <= 0.03
+    # provenance and stage results are in the catalogue
+    run = catalogue.run(run_id)
+    assert run["provenance"]["simulated"] is True and run["provenance"]["devices"]["sensor"]
+    assert catalogue.run_value(run_id, "exposure_ms") > 0
+    tilt = catalogue.run_value(run_id, "tilt_stage")
+    assert tilt is not None and len(tilt["offsets_deg"]) == 8
+    assert len(catalogue.completed_keys([run_id])) == 8 + 16 + 56
+
+
+def _dataset(catalogue, run_id):
+    return sorted((r["key"], r["repeat"], r["x_px"], r["y_px"]) for r in catalogue.readings([run_id]))
+
+
+def test_pausing_at_every_checkpoint_gives_the_same_data(tmp_path):
+    datasets, pauses = [], []
+    for interrupt in (False, True):
+        catalogue = Catalogue(tmp_path / f"c{interrupt}.sqlite")
+        session = open_session(BenchFile(simulation=SimBenchConfig(time_scale=0.0, seed=5)), catalogue)
+        engine = session.engine
+        if interrupt:
+            engine.subscribe(lambda e: e.kind == "point" and engine.pause())
+        thread, result = _run_in_thread(session, SMALL)
+        count = 0
+        while thread.is_alive():
+            if engine.state is EngineState.PAUSED:
+                assert not session.devices.sim.world.lamp.shutter_open  # a paused bench is dark
+                count += 1
+                engine.resume()
+            time.sleep(0.001)
+        thread.join()
+        datasets.append(_dataset(catalogue, result["runs"][0]))
+        pauses.append(count)
+        assert catalogue.run(result["runs"][0])["status"] == "completed"
+        session.close()
+        catalogue.close()
+    assert pauses[0] == 0 and pauses[1] >= 20
+    assert datasets[0] == datasets[1]
+
+
+@pytest.mark.parametrize("interlock", ["lamp", "temperature", "enclosure"])
+def test_an_interlock_suspends_and_the_run_resumes_once_cleared(session, interlock):
+    world = session.devices.sim.world
+    tripped = threading.Event()
+
+    def trip(event):
+        if event.kind == "point" and event.data["index"] == 5 and not tripped.is_set():
+            tripped.set()
+            if interlock == "lamp":
+                world.lamp.inject_fault()
+            elif interlock == "temperature":
+                world.temperature_c = 75.0
+            else:
+                world.enclosure_open = True
+
+    session.engine.subscribe(trip)
+    thread, result = _run_in_thread(session, SMALL)
+    _wait_for(lambda: session.engine.state is EngineState.SUSPENDED)
+    assert not world.lamp.shutter_open
+    time.sleep(0.05)
+    assert session.engine.state is EngineState.SUSPENDED  # stays suspended while the interlock holds
+    world.lamp.clear_fault()
+    world.temperature_c = 22.0
+    world.enclosure_open = False
+    thread.join(timeout=30)
+    (run_id,) = result["runs"]
+    catalogue = session.catalogue
+    assert catalogue.run(run_id)["status"] == "completed"
+    assert any(e["kind"] == "suspended" for e in catalogue.events(run_id))
+    readings = catalogue.readings([run_id])
+    assert all(r["status"] == "ok" for r in readings)  # nothing was measured in the dark
+    assert len({r["key"] for r in readings}) == 4 + 28
+
+
+def test_abort_and_emergency_stop_leave_the_bench_safe(session):
+    world = session.devices.sim.world
+    for command in ("abort", "emergency_stop"):
+        engine = session.engine
+        fired = threading.Event()
+        engine.subscribe(lambda e, c=command: e.kind == "point" and e.data["index"] == 3 and not fired.is_set()
+                         and (fired.set() or getattr(engine, c)()))
+        thread, result = _run_in_thread(session, SMALL)
+        thread.join(timeout=30)
+        run = session.catalogue.run(result["runs"][0])
+        assert run["status"] == "aborted"
+        assert ("emergency" in run["exit_reason"]) == (command == "emergency_stop")
+        assert not world.lamp.shutter_open and not world.azimuth.busy() and not world.zenith.busy()
+        assert engine.state is EngineState.IDLE
+        engine._listeners.clear()
+
+
+def test_a_dead_sensor_fails_the_run_and_the_bench_is_still_made_safe(session):
+    world = session.devices.sim.world
+    sensor_sim = session.devices.sim.devices["sensor"]
+    session.engine.subscribe(lambda e: e.kind == "point" and e.data["index"] == 4
+                             and setattr(sensor_sim.faults, "no_reply", True))
+    (run_id,) = run_campaign(SMALL, session)
+    run = session.catalogue.run(run_id)
+    assert run["status"] == "failed" and "DeviceTimeout" in run["exit_reason"]
+    assert not world.lamp.shutter_open
+    assert session.engine.state is EngineState.IDLE
+    assert len(session.catalogue.completed_keys([run_id])) >= 4  # what was recorded stays
+
+
+def test_illegal_commands_are_refused(session):
+    engine = session.engine
+    with pytest.raises(IllegalTransition):
+        engine.pause()
+    with pytest.raises(IllegalTransition):
+        engine.resume()
+    with pytest.raises(IllegalTransition):
+        engine.abort()
+
+
+def test_preflight_refuses_before_anything_moves(tmp_path):
+    catalogue = Catalogue(tmp_path / "c.sqlite")
+    bench = BenchFile.model_validate({"simulation": {"time_scale": 0},
+                                      "devices": {"table": {"zenith": {"limits_deg": [-10, 45]}}}})
+    session = open_session(bench, catalogue)
+    world = session.devices.sim.world
+    before = (world.azimuth.true_deg(), world.zenith.true_deg())
+    with pytest.raises(PreflightRefused) as info:
+        run_campaign(SMALL, session)
+    assert len(info.value.violations) == 8  # zenith 50° and 60° at 4 azimuths
+    assert (world.azimuth.true_deg(), world.zenith.true_deg()) == before
+    assert catalogue.runs() == []
+    session.close()
+    catalogue.close()
+
+
+def test_bench_data_export_is_what_fit_reads(session):
+    (run_id,) = run_campaign(SMALL, session)
+    data = bench_data(session.catalogue, [run_id], sensor_id="SIM-0001")
+    readings = session.catalogue.readings([run_id])
+    edge = [r for r in readings if r["flags"] & (SpotFlag.NEAR_EDGE | SpotFlag.ROI_CLIPPED)]  # recorded, not fitted
+    assert len(readings) == 4 + 28 and len(data) == len(readings) - len(edge)
+    assert set(np.round(data.zenith_deg, 3)) >= {0.0, round(float(incidence_from_stage_angle(60, 136.2, 7100.0)), 3)}
