@@ -117,7 +117,7 @@ def list_runs(catalogue: Optional[Path] = CatalogueOption) -> None:
             table.add_column(name)
         for r in cat.runs():
             table.add_row(str(r["id"]), str(r["campaign_id"] or ""), r["sensor_id"] or "", r["plan_name"], r["status"],
-                          f"{r.get('n_points', 0)}/{r.get('n_points_planned') or '?'}", str(r["parent_run_id"] or ""),
+                          f"{r.get('n_points_recorded', 0)}/{r.get('n_points_planned') or '?'}", str(r["parent_run_id"] or ""),
                           (r.get("started_utc") or "")[:19])
         out.print(table)
 
@@ -165,7 +165,7 @@ def resume_command(
     time_scale: Optional[float] = typer.Option(None, "--time-scale", min=0.0, help="Simulated clock (0 = instant)."),
 ) -> None:
     """Start a new run linked to RUN that measures only the missing points; prints its id on the last line."""
-    from .runner import resume_run
+    from .runner import continue_campaign, resume_run
 
     with _catalogue(catalogue) as cat:
         cat.mark_interrupted_runs()
@@ -176,10 +176,15 @@ def resume_command(
             _abort_on_signals(session.engine)
             with view.progress:
                 new_id = resume_run(run_id, session, on_run=view.on_run)
+                runs = [new_id]
+                campaign_id = cat.run(new_id)["campaign_id"]
+                if cat.run(new_id)["status"] == "completed" and campaign_id is not None:
+                    runs += continue_campaign(campaign_id, session, on_run=view.on_run)  # the rest of a fleet
         finally:
             session.close()
-        _print_run_summary(cat, new_id)
-        print(new_id)
+        for rid in runs:
+            _print_run_summary(cat, rid)
+        print(runs[-1])
 
 
 @app.command("export")
