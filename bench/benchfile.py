@@ -32,16 +32,16 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-import yaml
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from calibration.design import DEFAULT_BENCH, BenchGeometry
 from drivers.sim.bench import SimBenchConfig
 from drivers.sim.lamp import LED
 from drivers.sources import ARC_WARMUP_S, LED_WARMUP_S
+
+from .yamlfile import read_yaml
 
 #: The literal URL that names the simulated device (the same as omitting the URL).
 SIM_URL = "sim"
@@ -516,11 +516,4 @@ def load_bench_file(path) -> BenchFile:
     BenchFileError
         Missing file, not YAML, or invalid content; the message names the file and the field.
     """
-    path = Path(path)
-    try:
-        document = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise BenchFileError(f"{path}: no such file") from None
-    except yaml.YAMLError as exc:
-        raise BenchFileError(f"{path}: not valid YAML ({exc})") from None
-    return parse_bench_file(document, str(path))
+    return parse_bench_file(read_yaml(path, BenchFileError), str(path))

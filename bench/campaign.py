@@ -6,13 +6,13 @@ seed 003 procedure with every field spelled out.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Literal
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from calibration.models import METHODS
+
+from .yamlfile import field_problems, read_yaml
 
 
 class CampaignFileError(Exception):
@@ -109,18 +109,10 @@ class Campaign(_Strict):
 
 def load_campaign_file(path) -> Campaign:
     """Read and validate a campaign YAML file."""
-    path = Path(path)
-    try:
-        document = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise CampaignFileError(f"{path}: no such file") from None
-    except yaml.YAMLError as exc:
-        raise CampaignFileError(f"{path}: not valid YAML ({exc})") from None
+    document = read_yaml(path, CampaignFileError)
     if not isinstance(document, dict):
         raise CampaignFileError(f"{path}: expected a mapping at the top level")
     try:
         return Campaign.model_validate(document)
     except ValidationError as exc:
-        problems = "; ".join(f"field {'.'.join(str(p) for p in e['loc']) or '(top level)'}: {e['msg']}"
-                             for e in exc.errors())
-        raise CampaignFileError(f"{path}: {problems}") from None
+        raise CampaignFileError(f"{path}: {field_problems(exc)}") from None
