@@ -74,7 +74,7 @@ def run_campaign_command(
     time_scale: Optional[float] = typer.Option(None, "--time-scale", min=0.0, help="Simulated clock (0 = instant)."),
     dry_run: bool = typer.Option(False, "--dry-run", help="Only expand and check the plan."),
 ) -> None:
-    """Run a calibration campaign; prints the run id alone on its last line."""
+    """Run a calibration campaign; prints the run id alone on its last line (exit 1 if it did not complete)."""
     from .runner import PreflightRefused, check_campaign, run_campaign
 
     campaign = load_campaign_file(campaign_yaml)
@@ -99,6 +99,8 @@ def run_campaign_command(
             _print_run_summary(cat, run_id)
         if runs:
             print(runs[-1])
+            if cat.run(runs[-1])["status"] != "completed":
+                raise typer.Exit(1)  # aborted or failed: scripts must not take it for a finished run
 
 
 def _print_run_summary(cat, run_id: int) -> None:
@@ -185,6 +187,8 @@ def resume_command(
         for rid in runs:
             _print_run_summary(cat, rid)
         print(runs[-1])
+        if cat.run(runs[-1])["status"] != "completed":
+            raise typer.Exit(1)
 
 
 @app.command("export")
