@@ -138,6 +138,7 @@ class RunEngine:
         self._lamp_wanted = False
         self._progress = (0, 0)
         self._point_times: list[float] = []
+        self.last_frame = None
 
     # -- state and commands ----------------------------------------------------------------------------
     @property
@@ -306,6 +307,7 @@ class RunEngine:
 
     def _read(self, repeat: int) -> Reading:
         frame = self.devices.sensor.capture()
+        self.last_frame = frame  # for a live view; never read by the engine itself
         t = self.clock()
         try:
             spot = find_spot(frame, saturation_dn=self.full_scale_dn)
@@ -339,7 +341,8 @@ class RunEngine:
             self._point_times.append(time.monotonic() - t0)
             done, total = len(self._done), self._progress[1]
             mean = float(np.mean(self._point_times[-20:]))
-            self._emit("point", key=point.key, stage=point.stage, index=done, total=total,
+            self._emit("point", key=point.key, stage=point.stage, azimuth_deg=point.azimuth_deg,
+                       zenith_stage_deg=point.zenith_stage_deg, index=done, total=total,
                        eta_s=max(total - done, 0) * mean,
                        spots=[(r.x_px, r.y_px) for r in readings if r.ok])
             return readings
