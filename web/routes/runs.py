@@ -1,0 +1,50 @@
+"""Runs and their results, read from the catalogue."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+
+from fastapi import APIRouter
+
+from ..deps import READ, CatalogueDep
+from ..schemas import CalibrationsPublic, PointsPublic, RunPublic, RunsPublic
+
+router = APIRouter(prefix="/api/runs", tags=["runs"], dependencies=READ,
+                   responses={404: {"description": "No such run"}})
+
+
+@router.get("", response_model=RunsPublic, summary="List runs")
+def read_runs(catalogue: CatalogueDep, campaign_id: int | None = None):
+    """Every run (or those of one campaign), oldest first."""
+    runs = catalogue.runs(campaign_id)
+    return RunsPublic(data=runs, count=len(runs))
+
+
+@router.get("/{run_id}", response_model=RunPublic, summary="One run")
+def read_run(run_id: int, catalogue: CatalogueDep):
+    """A run with its plan arguments, provenance and progress."""
+    return catalogue.run(run_id)
+
+
+@router.get("/{run_id}/points", response_model=PointsPublic, summary="Points of a run")
+def read_points(run_id: int, catalogue: CatalogueDep):
+    """The run's points in recording order, each with the mean spot of its good readings."""
+    catalogue.run(run_id)  # "no run N" rather than an empty list
+    spots = defaultdict(list)
+    for reading in catalogue.readings(run_id):
+        if reading["status"] == "ok" and reading["x_px"] is not None:
+            spots[reading["point_id"]].append((reading["x_px"], reading["y_px"]))
+    points = []
+    for point in catalogue.points(run_id):
+        good = spots.get(point["id"], [])
+        mean = [sum(c) / len(good) for c in zip(*good)] if good else [None, None]
+        points.append({**point, "n_ok": len(good), "x_px": mean[0], "y_px": mean[1]})
+    return PointsPublic(run_id=run_id, data=points, count=len(points))
+
+
+@router.get("/{run_id}/calibrations", response_model=CalibrationsPublic, summary="Calibrations of a run")
+def read_calibrations(run_id: int, catalogue: CatalogueDep):
+    """Every method fitted to the run with its metrics; `chosen` marks the best held-out one."""
+    catalogue.run(run_id)
+    calibrations = catalogue.calibrations(run_id)
+    return CalibrationsPublic(run_id=run_id, data=calibrations, count=len(calibrations))

@@ -1,0 +1,178 @@
+"""What enters and leaves the API. Input, storage and output never share a class; the catalogue's dicts
+are validated into these on the way out, so the OpenAPI schema says what a client gets."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from bench.campaign import Campaign
+
+CampaignCreate = Campaign  # the campaign file's own model: the API accepts exactly what a YAML file may say
+
+
+class _Out(BaseModel):
+    model_config = ConfigDict(extra="ignore")
+
+
+class Message(_Out):
+    message: str
+
+
+# -- status -----------------------------------------------------------------------------------------------
+class TablePublic(_Out):
+    azimuth_deg: float
+    zenith_deg: float
+    moving: bool = False
+
+
+class EnginePublic(_Out):
+    model_config = ConfigDict(extra="allow")
+    state: str
+    run_id: int | None = None
+    sensor_id: str | None = None
+    index: int | None = None
+    total: int | None = None
+    eta_s: float | None = None
+
+
+class StatusPublic(_Out):
+    engine: EnginePublic
+    table: TablePublic | None = None
+    source: dict[str, Any] | None = None
+    sensor: dict[str, Any] | None = None
+    error: str | None = None
+    updated_utc: str | None = None
+
+
+class SpotPublic(_Out):
+    x_px: float | None = None
+    y_px: float | None = None
+    peak_dn: float | None = None
+    error: str | None = Field(None, description="The centroid's failure, when the frame has no usable spot")
+
+
+# -- commands ---------------------------------------------------------------------------------------------
+class JogCommand(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    azimuth_deg: float
+    zenith_deg: float
+
+
+class LampCommand(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    on: bool
+
+
+class ShutterCommand(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    open: bool
+
+
+# -- campaigns --------------------------------------------------------------------------------------------
+class DryRunPublic(_Out):
+    points: int
+    frames: int
+    moves: int
+    duration_s: float
+    violations: list[str]
+
+
+class CampaignQueued(_Out):
+    campaign_id: int
+
+
+class CampaignPublic(_Out):
+    id: int
+    name: str
+    plan: str
+    status: str
+    created_utc: str
+    n_runs: int
+    spec: dict[str, Any]
+
+
+class CampaignsPublic(_Out):
+    data: list[CampaignPublic]
+    count: int
+
+
+class FleetEntryPublic(_Out):
+    position: int
+    sensor_id: str
+    status: str
+    updated_utc: str | None = None
+    run_id: int | None = None
+    run_status: str | None = None
+    exit_reason: str | None = None
+    n_points_planned: int | None = None
+    n_points_recorded: int | None = None
+    calibration_id: int | None = None
+    method: str | None = None
+    metrics: dict[str, Any] | None = None
+
+
+class FleetPublic(_Out):
+    campaign_id: int
+    data: list[FleetEntryPublic]
+    count: int
+
+
+# -- runs -------------------------------------------------------------------------------------------------
+class RunPublic(_Out):
+    id: int
+    campaign_id: int | None
+    parent_run_id: int | None
+    sensor_id: str
+    plan_name: str
+    status: str
+    exit_reason: str | None
+    created_utc: str
+    started_utc: str | None
+    ended_utc: str | None
+    n_points_planned: int | None
+    n_points_recorded: int
+    plan_args: dict[str, Any]
+    provenance: dict[str, Any]
+
+
+class RunsPublic(_Out):
+    data: list[RunPublic]
+    count: int
+
+
+class PointPublic(_Out):
+    id: int
+    key: str
+    stage: str
+    azimuth_deg: float
+    zenith_stage_deg: float
+    zenith_deg: float
+    azimuth_body_deg: float
+    exposure_ms: float | None
+    completed_utc: str
+    n_readings: int
+    n_ok: int = Field(description="Readings with a centroid")
+    x_px: float | None = Field(description="Mean spot centre of the point's good readings [px]")
+    y_px: float | None = Field(description="Mean spot centre of the point's good readings [px]")
+
+
+class PointsPublic(_Out):
+    run_id: int
+    data: list[PointPublic]
+    count: int
+
+
+class CalibrationPublic(_Out):
+    id: int
+    method: str
+    chosen: bool
+    created_utc: str
+    metrics: dict[str, Any]
+
+
+class CalibrationsPublic(_Out):
+    run_id: int
+    data: list[CalibrationPublic]
+    count: int
