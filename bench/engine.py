@@ -200,7 +200,8 @@ class RunEngine:
         self._safe("shutter", self.devices.source.close_shutter)
 
     # -- running ---------------------------------------------------------------------------------------
-    def execute(self, plan: Plan, *, run_id: int, done_keys=frozenset(), lineage=(), n_points: int = 0) -> str:
+    def execute(self, plan: Plan, *, run_id: int, done_keys=frozenset(), lineage=(), n_points: int = 0,
+                on_completed=None) -> str:
         """Run `plan` as run `run_id`; returns its final status (completed, aborted, failed).
 
         Parameters
@@ -211,6 +212,9 @@ class RunEngine:
             Runs whose readings answer a skipped point.
         n_points : int
             Points of the plan, for progress.
+        on_completed : callable, optional
+            Called once the plan has run to its end and the bench is safe, before the run is marked completed
+            (the fits), so a reader never sees a completed run without its results. Its failure is logged.
         """
         self._run_id = run_id
         self._pause = self._abort = self._estop = False
@@ -240,6 +244,11 @@ class RunEngine:
             self._to(EngineState.ABORTING)
         elif status == "failed":
             self._to(EngineState.FAULTED)
+        elif on_completed is not None:
+            try:
+                on_completed()
+            except Exception as exc:  # noqa: BLE001 - a failed fit leaves the recorded data intact
+                self.catalogue.log_event(run_id, "warning", f"after the run: {type(exc).__name__}: {exc}")
         self.catalogue.set_run_status(run_id, status, reason)
         self._emit("finished", status=status, reason=reason)
         self._to(EngineState.IDLE)

@@ -193,14 +193,8 @@ def _execute(session: Session, campaign: Campaign, run_id: int, n_points: int, *
     lineage = list(lineage) or [run_id]
     done = catalogue.completed_keys(lineage)
     session.engine.frames = campaign.frames
-    status = session.engine.execute(make_plan(campaign), run_id=run_id, done_keys=done, lineage=lineage,
-                                    n_points=n_points)
-    if status == "completed":
-        try:
-            fit_run(catalogue, run_id, campaign.methods)
-        except Exception as exc:  # noqa: BLE001 - a failed fit leaves the recorded data intact
-            catalogue.log_event(run_id, "warning", f"fit failed: {exc}")
-    return status
+    return session.engine.execute(make_plan(campaign), run_id=run_id, done_keys=done, lineage=lineage,
+                                  n_points=n_points, on_completed=lambda: fit_run(catalogue, run_id, campaign.methods))
 
 
 def resume_run(run_id: int, session: Session, *, on_run=None) -> int:
