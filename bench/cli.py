@@ -31,7 +31,7 @@ from drivers.errors import DeviceError
 from .benchfile import BenchFile, BenchFileError, load_bench_file
 from .campaign import CampaignFileError
 from .catalogue import CatalogueError
-from .runner import PreflightRefused
+from .runner import PreflightRefused, ResumeRefused
 from .datafile import (DataFileError, calibration_document, read_bench_csv, read_calibration, read_spots_csv,
                        write_applied_csv, write_bench_csv, write_calibration)
 
@@ -58,7 +58,7 @@ def _user_errors(command):
         try:
             return command(*args, **kwargs)
         except (DataFileError, CalibrationError, BenchFileError, CampaignFileError, CatalogueError,
-                PreflightRefused) as exc:
+                PreflightRefused, ResumeRefused) as exc:
             err.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
             raise typer.Exit(2) from None
         except DeviceError as exc:  # a device that does not answer as it should: not the user's input

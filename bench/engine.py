@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calibration.centroid import CentroidError, find_spot
+from drivers.errors import DeviceFault, DeviceTimeout
 from .messages import (Capture, Checkpoint, CloseShutter, LampOn, Log, Measure, Move, OpenShutter, Plan, Reading,
                        Record, SetExposure, WaitWarm)
 
@@ -40,7 +41,7 @@ S = EngineState
 TRANSITIONS: dict[EngineState, set[EngineState]] = {
     S.IDLE: {S.RUNNING},
     S.RUNNING: {S.PAUSING, S.SUSPENDED, S.ABORTING, S.FAULTED, S.IDLE},
-    S.PAUSING: {S.PAUSED, S.RUNNING, S.ABORTING, S.FAULTED, S.IDLE},
+    S.PAUSING: {S.PAUSED, S.SUSPENDED, S.RUNNING, S.ABORTING, S.FAULTED, S.IDLE},
     S.PAUSED: {S.RUNNING, S.ABORTING, S.FAULTED},
     S.SUSPENDED: {S.RUNNING, S.ABORTING, S.FAULTED},
     S.ABORTING: {S.IDLE, S.FAULTED},
@@ -135,6 +136,7 @@ class RunEngine:
         self._listeners = []
         self._run_id: int | None = None
         self._shutter_open = False
+        self._shutter_wanted = False
         self._lamp_wanted = False
         self._progress = (0, 0)
         self._point_times: list[float] = []
@@ -218,13 +220,14 @@ class RunEngine:
         """
         self._run_id = run_id
         self._pause = self._abort = self._estop = False
+        self._shutter_wanted = self._shutter_open = self._lamp_wanted = False
         self._done, self._lineage = set(done_keys), list(lineage) or [run_id]
         self._progress = (len(self._done), n_points)
         self._point_times = []
         self._to(EngineState.RUNNING)
         self.catalogue.set_run_status(run_id, "running")
         status, reason = "completed", None
-        answer = None
+        answer, interrupt = None, None
         try:
             while True:
                 try:
@@ -234,26 +237,49 @@ class RunEngine:
                 answer = self._handle(msg)
         except Aborted:
             status, reason = "aborted", "emergency stop" if self._estop else "aborted by the operator"
+            self._enter(EngineState.ABORTING)
         except Exception as exc:  # noqa: BLE001 - every failure ends the run cleanly and is recorded
             status, reason = "failed", f"{type(exc).__name__}: {exc}"
+            self._enter(EngineState.FAULTED)
             self._emit("error", message=reason)
+        except BaseException as exc:  # KeyboardInterrupt, SystemExit: made safe and recorded, then re-raised
+            status, reason, interrupt = "aborted", f"interrupted ({type(exc).__name__})", exc
         finally:
-            plan.close()
-            self._finalise()
-        if status == "aborted" and self._state is not EngineState.ABORTING:
-            self._to(EngineState.ABORTING)
-        elif status == "failed":
-            self._to(EngineState.FAULTED)
-        elif on_completed is not None:
+            self._finalise()  # first: nothing the plan does on closing may keep the bench unsafe
             try:
-                on_completed()
-            except Exception as exc:  # noqa: BLE001 - a failed fit leaves the recorded data intact
-                self.catalogue.log_event(run_id, "warning", f"after the run: {type(exc).__name__}: {exc}")
-        self.catalogue.set_run_status(run_id, status, reason)
-        self._emit("finished", status=status, reason=reason)
-        self._to(EngineState.IDLE)
-        self._run_id = None
+                plan.close()
+            except Exception as exc:  # noqa: BLE001 - a plan that misbehaves while closing
+                self._emit("warning", message=f"plan close: {exc}")
+        try:
+            if status == "completed" and on_completed is not None:
+                try:
+                    on_completed()
+                except Exception as exc:  # noqa: BLE001 - a failed fit leaves the recorded data intact
+                    self.catalogue.log_event(run_id, "warning", f"after the run: {type(exc).__name__}: {exc}")
+            self.catalogue.set_run_status(run_id, status, reason)
+        except Exception as exc:  # noqa: BLE001 - the catalogue itself failed (disk full …): say so, go idle
+            status, reason = "failed", f"could not record the end of the run: {exc}"
+        finally:
+            with self._lock:  # whatever happened, the engine can take the next run
+                previous, self._state = self._state, EngineState.IDLE
+                self._run_id = None
+                self._wake.notify_all()
+            if previous is not EngineState.IDLE:
+                try:
+                    self.catalogue.log_event(run_id, "state", f"{previous.value} → idle")
+                except Exception:  # noqa: BLE001 - the catalogue may be what failed
+                    pass
+            self._emit("finished", status=status, reason=reason)
+            self._emit("state", state=EngineState.IDLE.value, previous=previous.value)
+        if interrupt is not None:
+            raise interrupt
         return status
+
+    def _enter(self, state: EngineState) -> None:
+        try:
+            self._to(state)
+        except Exception:  # noqa: BLE001 - the end of a run must go on whatever the bookkeeping says
+            pass
 
     def _finalise(self) -> None:
         """Shutter closed, lamp at standby, table stopped — each tried even if another fails."""
@@ -276,13 +302,16 @@ class RunEngine:
     # -- messages --------------------------------------------------------------------------------------
     def _handle(self, msg):
         d = self.devices
+        if not isinstance(msg, (Log, Record)) and self._abort:
+            raise Aborted()  # nothing acts on the bench once an abort or an emergency stop is asked for
         if isinstance(msg, Measure):
             return self._measure(msg.point)
         if isinstance(msg, Move):
             self._checkpoint()
-            d.table.move_to(msg.azimuth_deg, msg.zenith_stage_deg)
+            self._move(msg.azimuth_deg, msg.zenith_stage_deg)
             return None
         if isinstance(msg, Capture):
+            self._checkpoint()  # no frame while an interlock holds or the bench is paused
             return [self._read(i) for i in range(msg.frames)]
         if isinstance(msg, SetExposure):
             actual = d.sensor.set_exposure_ms(msg.exposure_ms)
@@ -292,13 +321,14 @@ class RunEngine:
             d.source.lamp_on()
             return None
         if isinstance(msg, WaitWarm):
-            d.source.wait_until_warm(timeout_s=self.warm_timeout_s, poll_s=min(0.5, self.interlocks.poll_s))
+            self._wait_warm()
             return None
         if isinstance(msg, OpenShutter):
-            d.source.open_shutter()
-            self._shutter_open = True
+            self._shutter_wanted = True
+            self._checkpoint()  # opens it once nothing holds the bench
             return None
         if isinstance(msg, CloseShutter):
+            self._shutter_wanted = False
             d.source.close_shutter()
             self._shutter_open = False
             return None
@@ -313,6 +343,47 @@ class RunEngine:
             self._checkpoint()
             return None
         raise TypeError(f"the engine does not know the message {msg!r}")
+
+    def _act(self, action) -> None:
+        """Start an action on the bench unless an abort came first (an e-stop sets its flag under this lock)."""
+        with self._lock:
+            if self._abort:
+                raise Aborted()
+            action()
+
+    def _move(self, azimuth_deg: float, zenith_deg: float, timeout_s: float = 600.0) -> None:
+        """Move the table, watching for an abort while it moves (a stalled table times out)."""
+        table = self.devices.table
+        self._act(lambda: table.move_to(azimuth_deg, zenith_deg, wait=False))
+        deadline = time.monotonic() + timeout_s
+        while table.is_moving():
+            if self._abort:
+                self._safe("table", table.stop)
+                raise Aborted()
+            if time.monotonic() > deadline:
+                self._safe("table", table.stop)
+                raise DeviceTimeout(table.name, f"table still moving after {timeout_s} s: stalled?")
+            with self._lock:
+                self._wake.wait(0.005)
+
+    def _wait_warm(self) -> None:
+        """Wait for the lamp, watching for an abort (an arc lamp warms for half an hour)."""
+        source = self.devices.source
+        deadline = time.monotonic() + self.warm_timeout_s
+        while True:
+            if self._abort:
+                raise Aborted()
+            status = source.status()
+            if status.fault:
+                raise DeviceFault(source.name, "lamp fault while warming up")
+            if status.warm:
+                return
+            if not status.lamp_on:
+                raise DeviceFault(source.name, "lamp is off: it cannot warm up")
+            if time.monotonic() > deadline:
+                raise DeviceTimeout(source.name, f"lamp not warm after {self.warm_timeout_s} s")
+            with self._lock:
+                self._wake.wait(min(0.5, self.interlocks.poll_s))
 
     def _read(self, repeat: int) -> Reading:
         frame = self.devices.sensor.capture()
@@ -335,7 +406,7 @@ class RunEngine:
             self._checkpoint()
             started = time.time()
             t0 = time.monotonic()
-            self.devices.table.move_to(point.azimuth_deg, point.zenith_stage_deg)
+            self._move(point.azimuth_deg, point.zenith_stage_deg)
             readings = []
             for repeat in range(point.repeats):
                 if self._abort or self._pause:
@@ -424,6 +495,7 @@ class RunEngine:
         return None
 
     def _checkpoint(self) -> None:
+        """Hold while paused or while an interlock trips; then (re)open the shutter if the plan wants it open."""
         while True:
             if self._abort:
                 raise Aborted()
@@ -431,11 +503,18 @@ class RunEngine:
                 self._hold(EngineState.PAUSED, "paused by the operator", lambda: not self._pause)
                 continue
             reason = self._interlock_tripped()
-            if reason is None:
+            if reason is not None:
+                self._hold(EngineState.SUSPENDED, reason, self._interlocks_clear)
+                continue
+            with self._lock:
+                if self._pause:
+                    continue  # asked for while the interlocks were being read
                 if self._state is EngineState.PAUSING:  # a resume before the checkpoint was reached
                     self._to(EngineState.RUNNING)
-                return
-            self._hold(EngineState.SUSPENDED, reason, self._interlocks_clear)
+            if self._shutter_wanted and not self._shutter_open:
+                self._act(self.devices.source.open_shutter)
+                self._shutter_open = True
+            return
 
     def _interlocks_clear(self) -> bool:
         if self._interlock_tripped() is not None:
@@ -447,9 +526,10 @@ class RunEngine:
         return now - self._clear_since >= self.interlocks.hold_off_s
 
     def _hold(self, state: EngineState, reason: str, cleared) -> None:
-        """Park the bench safely in `state` until `cleared()` (or an abort), then restore it."""
-        shutter_was_open = self._shutter_open
+        """Park the bench safely in `state` until `cleared()` (or an abort), then relight the lamp; the shutter
+        is reopened by the checkpoint once nothing holds the bench."""
         self._safe("shutter", self.devices.source.close_shutter)
+        self._shutter_open = False
         self._safe("table", self.devices.table.stop)
         self._to(state)
         self.catalogue.log_event(self._run_id, state.value, reason)
@@ -461,11 +541,8 @@ class RunEngine:
         if self._abort:
             raise Aborted()
         if self._lamp_wanted and not self.devices.source.status().lamp_on:
-            self.devices.source.lamp_on()  # a lamp fault put the lamp out
+            self._act(self.devices.source.lamp_on)  # a lamp fault put the lamp out
         if self._lamp_wanted:
-            self.devices.source.wait_until_warm(timeout_s=self.warm_timeout_s, poll_s=min(0.5, self.interlocks.poll_s))
-        if shutter_was_open:
-            self.devices.source.open_shutter()
-            self._shutter_open = True
+            self._wait_warm()
         self._to(EngineState.RUNNING)
         self.catalogue.log_event(self._run_id, "running", f"resumed after: {reason}")

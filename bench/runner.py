@@ -21,6 +21,10 @@ from .plans import alignment_violations, make_plan
 from .preflight import PreflightReport, TimingModel, preflight
 
 
+class ResumeRefused(Exception):
+    """A run that cannot be resumed (complete, still live, or already resumed)."""
+
+
 class PreflightRefused(Exception):
     """The campaign would break a limit or an alignment tolerance; `violations` lists every one."""
 
@@ -202,7 +206,12 @@ def resume_run(run_id: int, session: Session, *, on_run=None) -> int:
     catalogue = session.catalogue
     old = catalogue.run(run_id)
     if old["status"] == "completed":
-        raise ValueError(f"run {run_id} is complete; nothing to resume")
+        raise ResumeRefused(f"run {run_id} is complete; nothing to resume")
+    if old["status"] in ("running", "paused", "suspended"):
+        raise ResumeRefused(f"run {run_id} is {old['status']}; only an ended run can be resumed")
+    children = [r["id"] for r in catalogue.runs() if r["parent_run_id"] == run_id]
+    if children:
+        raise ResumeRefused(f"run {run_id} was already resumed by run {children[-1]}; resume that one")
     campaign = Campaign.model_validate(old["plan_args"])
     _mount_sensor(session, old["sensor_id"], None)
     new_id = catalogue.create_run(campaign_id=old["campaign_id"], sensor_id=old["sensor_id"], plan_name=old["plan_name"],
@@ -220,4 +229,4 @@ def resume_run(run_id: int, session: Session, *, on_run=None) -> int:
 
 
 __all__ = ["Session", "open_session", "check_campaign", "run_campaign", "continue_campaign", "resume_run",
-           "fit_run", "bench_data", "PreflightRefused"]
+           "fit_run", "bench_data", "PreflightRefused", "ResumeRefused"]

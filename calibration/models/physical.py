@@ -132,6 +132,10 @@ class PhysicalCalibration(Calibration):
         data.require_spread(min_points=cls.min_points, method=cls.method)
         start = _initial_build(data, design, glass_index)
         names = FITTED + (("glass_index",) if fit_index else ())
+        off = ~data.normal_incidence
+        if np.unique(np.round(np.mod(data.azimuth_deg[off], 180.0), 1)).size < 3:
+            # cos 2φ and sin 2φ need three azimuths modulo 180° to be told apart: assume a round pinhole
+            names = tuple(n for n in names if not n.startswith("aperture_"))
         s = direction_vector(data.zenith_deg, data.azimuth_deg)
         measured = np.concatenate([data.x_px, data.y_px])
         pitch = design.pixel_pitch_mm
@@ -142,19 +146,24 @@ class PhysicalCalibration(Calibration):
             return np.concatenate([x, y]) - measured
 
         p0 = np.array([getattr(start, n) for n in names], dtype=float)
-        lower = np.array([-np.inf, -np.inf, 1e-3, 0.0, -10.0, -10.0, -np.inf, -0.1, -0.1] + ([1.0] if fit_index else []))
-        upper = np.array([np.inf, np.inf, 10.0, 10.0, 10.0, 10.0, np.inf, 0.1, 0.1] + ([3.0] if fit_index else []))
+        bounds = {"gap_mm": (1e-3, 10.0), "glass_mm": (0.0, 10.0), "tilt_x_deg": (-10.0, 10.0),
+                  "tilt_y_deg": (-10.0, 10.0), "aperture_c": (-0.1, 0.1), "aperture_s": (-0.1, 0.1),
+                  "glass_index": (1.0, 3.0)}
+        lower = np.array([bounds.get(n, (-np.inf, np.inf))[0] for n in names])
+        upper = np.array([bounds.get(n, (-np.inf, np.inf))[1] for n in names])
         result = least_squares(residuals, p0, bounds=(lower, upper), x_scale="jac", method="trf",
                                xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=2000)
         if not result.success:
             raise FitError(f"physical: the fit did not converge ({result.message})")
         dof = max(result.fun.size - len(names), 1)
         sigma2 = 2.0 * result.cost / dof
-        try:
-            cov = np.linalg.inv(result.jac.T @ result.jac) * sigma2
-        except np.linalg.LinAlgError as exc:
-            raise FitError("physical: the data do not constrain every build parameter "
-                           "(singular Jacobian); add zeniths or azimuths") from exc
+        _, singular, vt = np.linalg.svd(result.jac, full_matrices=False)
+        null = vt[singular <= singular.max() * 1e-9]
+        if null.size:  # name what the data cannot see (e.g. the glass index once the glass thickness is 0)
+            free = [n for n, w in zip(names, np.abs(null).max(axis=0)) if w > 1e-3]
+            raise FitError(f"physical: the data do not constrain {', '.join(free) or 'every parameter'}; "
+                           "fix it (e.g. do not fit the glass index) or add zeniths and azimuths")
+        cov = np.linalg.inv(result.jac.T @ result.jac) * sigma2
         std = np.sqrt(np.diag(cov))
         corr = cov / np.outer(std, std)
         fitted = dict(zip(names, result.x))

@@ -185,8 +185,9 @@ class AxisModel:
     def _start(self, target: float, rate: float) -> float:
         now = self._sync()
         start = self._motor_now(now)
-        if self._move:  # a new command supersedes the move in progress, from where the axis is
+        if self._move:  # a new command supersedes the move (or the homing) in progress, from where the axis is
             self._move = None
+        self.homing = False
         self.motor_deg = start
         end = self._quantise(target)
         self._limit_on_arrival = None
@@ -224,12 +225,13 @@ class AxisModel:
         """Start homing: move to the home switch at the homing rate; returns the duration [s]."""
         self._limit_hit = None
         switch = self.spec.home_switch_true_deg - self.true_minus_reported
+        duration = self._start(switch, self.spec.home_rate_deg_s)
         self.homing = True
-        return self._start(switch, self.spec.home_rate_deg_s)
+        return duration
 
     def stop(self) -> None:
         """Stop where the axis is (a stalled axis stays where it froze)."""
-        now = self.clock.now()
+        now = self._sync()  # a move that ended unobserved has ended (and a homing has re-zeroed)
         if self._move:
             self.motor_deg = self._motor_now(now)
             self._move = None

@@ -205,3 +205,43 @@ def test_bench_data_export_is_what_fit_reads(session):
     edge = [r for r in readings if r["flags"] & (SpotFlag.NEAR_EDGE | SpotFlag.ROI_CLIPPED)]  # recorded, not fitted
     assert len(readings) == 4 + 28 and len(data) == len(readings) - len(edge)
     assert set(np.round(data.zenith_deg, 3)) >= {0.0, round(float(incidence_from_stage_angle(60, 136.2, 7100.0)), 3)}
+
+
+def _slow_session(tmp_path, source):
+    catalogue = Catalogue(tmp_path / f"slow-{source}.sqlite")
+    return open_session(BenchFile(simulation=SimBenchConfig(time_scale=1.0, seed=5, source=source)), catalogue)
+
+
+def test_emergency_stop_during_the_warm_up_opens_nothing(tmp_path):
+    session = _slow_session(tmp_path, "xenon")  # a xenon lamp warms for minutes of simulated time
+    world = session.devices.sim.world
+    try:
+        thread, result = _run_in_thread(session, SMALL)
+        _wait_for(lambda: world.lamp.on)
+        time.sleep(0.1)
+        t0 = time.monotonic()
+        session.engine.emergency_stop()
+        thread.join(timeout=10)
+        assert not thread.is_alive() and time.monotonic() - t0 < 5
+        run = session.catalogue.run(result["runs"][0])
+        assert (run["status"], run["exit_reason"]) == ("aborted", "emergency stop")
+        assert not world.lamp.shutter_open and session.catalogue.completed_keys([run["id"]]) == set()
+    finally:
+        session.close()
+
+
+def test_emergency_stop_during_a_move_stops_the_table(tmp_path):
+    session = _slow_session(tmp_path, "led")
+    world = session.devices.sim.world
+    try:
+        thread, result = _run_in_thread(session, SMALL)
+        _wait_for(lambda: world.azimuth.busy())  # the first 90° turn takes ~10 s at 10°/s
+        session.engine.emergency_stop()
+        thread.join(timeout=10)
+        stopped_at = world.azimuth.true_deg()
+        time.sleep(0.3)
+        assert not world.azimuth.busy() and world.azimuth.true_deg() == stopped_at < 89.0
+        assert session.catalogue.run(result["runs"][0])["status"] == "aborted"
+        assert not world.lamp.shutter_open
+    finally:
+        session.close()
