@@ -245,3 +245,18 @@ def test_emergency_stop_during_a_move_stops_the_table(tmp_path):
         assert not world.lamp.shutter_open
     finally:
         session.close()
+
+
+def test_resume_refuses_complete_and_already_resumed_runs(session):
+    from bench.runner import ResumeRefused, resume_run
+    (run_id,) = run_campaign(SMALL, session)
+    with pytest.raises(ResumeRefused, match="complete"):
+        resume_run(run_id, session)
+    fired = threading.Event()
+    session.engine.subscribe(lambda e: e.kind == "point" and e.data["index"] == 3 and not fired.is_set()
+                             and (fired.set() or session.engine.abort()))
+    (aborted,) = run_campaign(SMALL.model_copy(update={"name": "again"}), session)
+    child = resume_run(aborted, session)
+    assert session.catalogue.run(child)["status"] == "completed"
+    with pytest.raises(ResumeRefused, match=f"already resumed by run {child}"):
+        resume_run(aborted, session)

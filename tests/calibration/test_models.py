@@ -194,3 +194,11 @@ def test_physical_recovers_a_non_round_aperture():
         assert abs(getattr(cal, name) - getattr(truth, name)) <= 3 * cal.uncertainties[name], name
     basic = Seed003Calibration.fit(data)
     assert _rms_vector(cal, data) < 0.01 < _rms_vector(basic, data)
+
+
+def test_physical_assumes_a_round_pinhole_when_the_azimuths_cannot_resolve_it():
+    data = synthetic_bench_data(BUILD, noise_px=0.02, seed=4).direction_means()
+    two = data.subset(np.isin(data.azimuth_deg, [0.0, 90.0, 180.0, 270.0]) | data.normal_incidence)  # 0°, 90° mod 180°
+    cal = PhysicalCalibration.fit(two)
+    assert "aperture_c" not in cal.fitted and cal.aperture_c == 0.0
+    assert "aperture_c" in PhysicalCalibration.fit(data).fitted

@@ -166,3 +166,17 @@ def test_alt_az_axis_order_gives_the_gimbal_direction():
     assert math.cos(math.radians(zenith)) == pytest.approx(math.cos(math.radians(30)) * math.cos(math.radians(20)), abs=1e-6)
     with pytest.raises(ValueError, match="axis_order"):
         SimWorld(axis_order="sideways")
+
+
+def test_a_move_that_supersedes_homing_does_not_rezero_the_axis():
+    wall = FakeWall()
+    axis = AxisModel(AxisSpec(start_true_deg=-20.0, home_switch_true_deg=0.0), SimClock(1.0, wall=wall))
+    axis.home()
+    wall.t += 0.5
+    axis.move_to(30.0)  # the operator changes their mind mid-homing
+    wall.t += 60.0
+    assert not axis.homed and axis.position_deg() == pytest.approx(30.0)
+    axis.home()
+    wall.t += 60.0
+    axis.stop()  # a homing that ended unobserved still re-zeroes
+    assert axis.homed and axis.position_deg() == pytest.approx(0.0)
