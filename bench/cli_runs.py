@@ -238,3 +238,35 @@ def fleet_command(campaign_id: int = typer.Argument(...), catalogue: Optional[Pa
                           _f(h.get("rms_zenith_deg", float("nan"))), _f(h.get("rms_azimuth_deg", float("nan"))),
                           _f(h.get("rms_vector_deg", float("nan"))))
         out.print(table)
+
+
+@app.command("serve")
+@_user_errors
+def serve_command(
+    bench: Optional[Path] = typer.Option(None, "--bench", "-b", help="Bench file [default: the simulated bench]."),
+    catalogue: Optional[Path] = CatalogueOption,
+    host: str = typer.Option("127.0.0.1", help="Interface to listen on (loopback only by default)."),
+    port: int = typer.Option(8000, help="TCP port."),
+    time_scale: Optional[float] = typer.Option(None, "--time-scale", min=0.0, help="Simulated clock (0 = instant)."),
+    public_read: bool = typer.Option(False, "--public-read", help="Let read-only views work without the token."),
+) -> None:
+    """Serve the bench's web API (OpenAPI at /docs); commands need the token printed at first start."""
+    from web.app import create_app
+    from web.security import default_config_dir, load_or_create_token
+    from web.server import serve
+    from web.settings import WebSettings
+
+    from .service import BenchService
+
+    token, created = load_or_create_token()
+    if created:  # shown once; it stays in the user's config directory
+        out.print(f"API token (created now, kept in {escape(str(default_config_dir()))}): [bold]{token}[/]")
+    settings = WebSettings(host=host, port=port, public_read=public_read, token=token)
+    bench_file = load_bench_file(bench) if bench else BenchFile()
+    with _catalogue(catalogue) as cat:
+        service = BenchService(bench_file, cat, time_scale=time_scale).start()
+        try:
+            out.print(f"sunbench API on http://{host}:{port}/docs (Ctrl-C to stop)")
+            serve(create_app(service, settings=settings))
+        finally:
+            service.close()
