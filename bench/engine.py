@@ -116,6 +116,7 @@ class RunEngine:
     """
 
     ROI_HALF_PX = 32
+    ARRIVAL_TOLERANCE_DEG = 2.0 / 60.0  # the LX200's low-precision resolution is 1′
 
     def __init__(self, devices, catalogue, *, geometry, interlocks: Interlocks = Interlocks(), frames: str = "roi",
                  full_scale_dn: float = 1023.0, clock=time.monotonic, warm_timeout_s: float = 7200.0):
@@ -365,6 +366,11 @@ class RunEngine:
                 raise DeviceTimeout(table.name, f"table still moving after {timeout_s} s: stalled?")
             with self._lock:
                 self._wake.wait(0.005)
+        azimuth, zenith = table.position()  # a limit switch or a stall that stopped it short is a fault
+        off = max(abs((azimuth - azimuth_deg + 180.0) % 360.0 - 180.0), abs(zenith - zenith_deg))
+        if off > self.ARRIVAL_TOLERANCE_DEG:
+            raise DeviceFault(table.name, f"table stopped at ({azimuth:.4f}°, {zenith:.4f}°), "
+                                          f"not at ({azimuth_deg:.4f}°, {zenith_deg:.4f}°)")
 
     def _wait_warm(self) -> None:
         """Wait for the lamp, watching for an abort (an arc lamp warms for half an hour)."""

@@ -260,3 +260,14 @@ def test_resume_refuses_complete_and_already_resumed_runs(session):
     assert session.catalogue.run(child)["status"] == "completed"
     with pytest.raises(ResumeRefused, match=f"already resumed by run {child}"):
         resume_run(aborted, session)
+
+
+def test_a_limit_switch_that_stops_the_table_short_fails_the_run(session):
+    world = session.devices.sim.world
+    # a hard limit switch at 35° true, inside the soft limits: the table stops there, short of 40°
+    import dataclasses
+    world.zenith.spec = dataclasses.replace(world.zenith.spec, hard_limits_deg=(-95.0, 35.0))
+    (run_id,) = run_campaign(SMALL, session)
+    run = session.catalogue.run(run_id)
+    assert run["status"] == "failed" and ("limit switch" in run["exit_reason"] or "not at" in run["exit_reason"])
+    assert not world.lamp.shutter_open
