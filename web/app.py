@@ -20,7 +20,7 @@ from bench.engine import IllegalTransition
 from bench.runner import PreflightRefused
 from drivers.errors import LimitError
 
-from .routes import campaigns, commands, downloads, events, run, runs, status
+from .routes import campaigns, commands, downloads, events, fits, pages, run, runs, status
 from .settings import WebSettings
 
 TAGS = [
@@ -88,6 +88,7 @@ def create_app(service, *, settings: WebSettings) -> FastAPI:
     app.state.settings = settings
     app.state.shutdown = shutdown
     _install_error_handlers(app)
-    for module in (status, commands, campaigns, run, runs, downloads, events):
+    for module in (status, commands, campaigns, run, runs, fits, downloads, events):
         app.include_router(module.router)
+    pages.install(app)  # the dashboard: /, /launch, /run, /results, /fleet and /static
     return app

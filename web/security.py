@@ -13,7 +13,7 @@ import stat
 from pathlib import Path
 from typing import Annotated
 
-from fastapi import Depends, HTTPException, Request, status
+from fastapi import Depends, HTTPException, Query, Request, status
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
 from .settings import WebSettings
@@ -89,3 +89,14 @@ def require_read(credentials: _CredentialsDep, settings: Annotated[WebSettings, 
     """Reads: need the token unless the server runs with ``public_read``."""
     if not settings.public_read:
         _check(credentials, settings)
+
+
+def require_read_stream(credentials: _CredentialsDep, settings: Annotated[WebSettings, Depends(_settings)],
+                        token: Annotated[str | None, Query(description="The token, for clients that cannot send "
+                                                                       "headers (a browser's EventSource)")] = None
+                        ) -> None:
+    """Reads of the event stream: as :func:`require_read`, but the token may also come as ``?token=``, since
+    a browser's ``EventSource`` cannot send an Authorization header. The header wins when both are sent."""
+    if credentials is None and token is not None:
+        credentials = HTTPAuthorizationCredentials(scheme="Bearer", credentials=token)
+    require_read(credentials, settings)

@@ -55,6 +55,7 @@ READS = [
     ("GET", "/api/runs/1", None),
     ("GET", "/api/runs/1/points", None),
     ("GET", "/api/runs/1/calibrations", None),
+    ("GET", "/api/runs/1/fit", None),
     ("GET", "/api/runs/1/data.csv", None),
     ("GET", "/api/calibrations/1/physical.json", None),
     ("GET", "/api/calibrations/1/physical.h", None),

@@ -9,12 +9,14 @@ from collections.abc import AsyncIterator
 
 import anyio
 import numpy as np
-from fastapi import APIRouter, Request
+from fastapi import APIRouter, Depends, Request
 from fastapi.sse import EventSourceResponse, ServerSentEvent
 
-from ..deps import READ, EventQueueDep, SettingsDep
+from ..deps import EventQueueDep, SettingsDep
+from ..security import require_read_stream
 
-router = APIRouter(prefix="/api", tags=["events"], dependencies=READ)
+# the token may also come as ?token=: a browser's EventSource cannot send headers
+router = APIRouter(prefix="/api", tags=["events"], dependencies=[Depends(require_read_stream)])
 
 
 def _plain(value):

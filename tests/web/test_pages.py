@@ -1,0 +1,190 @@
+"""The dashboard pages on the simulated bench: each page, its JS module, plotly.js served locally (no CDN),
+the read-only fit route the result plots draw, and the event stream's ?token= for the browser's EventSource."""
+
+import re
+import time
+
+import pytest
+from fastapi.testclient import TestClient
+
+from bench.benchfile import BenchFile
+from bench.campaign import Campaign, Seed003Procedure
+from bench.catalogue import Catalogue
+from bench.service import BenchService
+from calibration.models import METHODS
+from web.app import create_app
+from web.routes.pages import PAGES, STATIC_DIR
+from web.settings import WebSettings
+
+TOKEN = "test-token-0123456789abcdef"
+AUTH = {"Authorization": f"Bearer {TOKEN}"}
+SMALL = Campaign(name="small", frames="none", seed003=Seed003Procedure(
+    azimuth_step_deg=90.0, repeats=1, centre_repeats=1, tilt_stage=False)).model_dump(mode="json")
+
+# page → its JS module, and whether it draws with plotly
+MODULES = {"/": ("bench.js", False), "/launch": ("launch.js", False), "/run": ("run.js", True),
+           "/results": ("results.js", True), "/fleet": ("fleet.js", False)}
+EXTERNAL_URL = re.compile(r"(?:https?:)?//[a-z0-9.-]+\.[a-z]{2,}", re.IGNORECASE)
+
+
+@pytest.fixture
+def service(tmp_path):
+    svc = BenchService(BenchFile(), Catalogue(tmp_path / "c.sqlite"), time_scale=0.0, status_period_s=0.05).start()
+    yield svc
+    svc.close()
+    svc.catalogue.close()
+
+
+def _client(service, **settings):
+    return TestClient(create_app(service, settings=WebSettings(token=TOKEN, sse_keepalive_s=0.2, **settings)))
+
+
+@pytest.fixture
+def client(service):
+    with _client(service) as c:
+        yield c
+
+
+def _local_assets(html: str) -> list[str]:
+    return re.findall(r'(?:src|href)="(/static/[^"]+)"', html)
+
+
+def _imports(js: str) -> list[str]:
+    return [f"/static/{name.removeprefix('./')}" for name in re.findall(r'from\s+"(\./[^"]+)"', js)]
+
+
+def test_every_page_is_html_with_its_module_and_plotly_where_it_plots(client):
+    assert set(PAGES) == set(MODULES)
+    for path, (module, plots) in MODULES.items():
+        response = client.get(path)  # the pages hold no data: no token needed
+        assert response.status_code == 200, path
+        assert response.headers["content-type"].startswith("text/html")
+        html = response.text
+        assert f'<script type="module" src="/static/{module}"></script>' in html, path
+        assert ('src="/static/plotly.min.js"' in html) == plots, path
+        assert 'id="token-form"' in html and 'id="message"' in html
+        for asset in _local_assets(html):
+            assert client.get(asset).status_code == 200, (path, asset)
+    assert client.get("/results", params={"run": 1}).status_code == 200
+    assert client.get("/fleet", params={"campaign": 1}).status_code == 200
+
+
+def test_no_served_html_or_js_refers_to_another_host(client):
+    seen, todo = set(), [*MODULES]
+    while todo:
+        url = todo.pop()
+        if url in seen or url == "/static/plotly.min.js":  # plotly's own bundle: checked for what it is below
+            continue
+        seen.add(url)
+        response = client.get(url)
+        assert response.status_code == 200, url
+        assert not EXTERNAL_URL.search(response.text), (url, EXTERNAL_URL.search(response.text).group())
+        todo += _local_assets(response.text) if url in MODULES else _imports(response.text)
+    assert {f"/static/{m}" for m, _ in MODULES.values()} | {"/static/common.js", "/static/style.css"} <= seen
+    # every file shipped in web/static is a page or is reached from one (nothing stale), and was checked
+    shipped = {p.name for p in STATIC_DIR.iterdir() if p.is_file()}
+    assert {n for n in shipped if n.endswith(".html")} == set(PAGES.values())
+    assert {f"/static/{n}" for n in shipped if not n.endswith(".html")} <= seen
+
+
+def test_plotly_is_served_locally_from_the_plotly_package(client):
+    response = client.get("/static/plotly.min.js")
+    assert response.status_code == 200
+    assert "javascript" in response.headers["content-type"]
+    head = response.text[:2000]
+    assert "plotly.js" in head and len(response.content) > 1_000_000
+    assert "newPlot" in response.text
+
+
+def test_static_files_cannot_escape_their_folder(client):
+    assert client.get("/static/nonexistent.js").status_code == 404
+    assert client.get("/static/../app.py").status_code == 404
+    assert client.get("/static/%2e%2e/app.py").status_code == 404
+
+
+def test_the_pages_are_not_in_the_api_schema(client):
+    paths = client.get("/openapi.json").json()["paths"]
+    assert not {"/", "/launch", "/run", "/results", "/fleet", "/static/plotly.min.js"} & set(paths)
+
+
+# -- the event stream's token as a query parameter ----------------------------------------------------------
+def _first_event(response, timeout_s=10.0):
+    deadline = time.monotonic() + timeout_s
+    for line in response.iter_lines():
+        if line.startswith(("event: ", ":")):
+            return line
+        assert time.monotonic() < deadline
+    raise AssertionError("the stream ended")
+
+
+def test_the_event_stream_takes_the_token_as_a_query_parameter(client):
+    with client.stream("GET", "/api/events", params={"token": TOKEN}) as response:
+        assert response.status_code == 200 and response.headers["content-type"].startswith("text/event-stream")
+        assert _first_event(response)
+
+
+@pytest.mark.parametrize("params", [{}, {"token": "wrong-token-0123456789"}, {"token": ""}], ids=["none", "wrong", "empty"])
+def test_the_event_stream_refuses_a_missing_or_wrong_query_token(client, params):
+    response = client.get("/api/events", params=params)
+    assert response.status_code == 401 and response.headers["www-authenticate"] == "Bearer"
+
+
+def test_a_header_token_wins_over_the_query_token(client):
+    wrong = {"Authorization": "Bearer wrong-token-0123456789"}
+    assert client.get("/api/events", params={"token": TOKEN}, headers=wrong).status_code == 401
+    with client.stream("GET", "/api/events", params={"token": "wrong-token-0123456789"}, headers=AUTH) as response:
+        assert response.status_code == 200
+
+
+def test_the_query_token_opens_nothing_but_the_event_stream(client):
+    assert client.get("/api/status", params={"token": TOKEN}).status_code == 401
+    assert client.post("/api/source/lamp", params={"token": TOKEN}, json={"on": True}).status_code == 401
+
+
+def test_with_public_read_the_event_stream_needs_no_token(service):
+    with _client(service, public_read=True) as client, client.stream("GET", "/api/events") as response:
+        assert response.status_code == 200
+        assert _first_event(response)
+
+
+# -- the fit route the result plots use ---------------------------------------------------------------------
+def _finished_run(client, timeout_s=60.0) -> int:
+    assert client.post("/api/campaigns", json=SMALL, headers=AUTH).status_code == 202
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        runs = client.get("/api/runs", headers=AUTH).json()["data"]
+        if runs and client.get(f"/api/runs/{runs[0]['id']}/calibrations", headers=AUTH).json()["count"]:
+            return runs[0]["id"]
+        time.sleep(0.05)
+    raise AssertionError("the campaign did not finish")
+
+
+def test_the_fit_route_gives_radius_and_residuals_of_each_method(client):
+    run_id = _finished_run(client)
+    points = client.get(f"/api/runs/{run_id}/points", headers=AUTH).json()["data"]
+    calibrations = client.get(f"/api/runs/{run_id}/calibrations", headers=AUTH).json()["data"]
+    chosen = next(c["method"] for c in calibrations if c["chosen"])
+
+    fit = client.get(f"/api/runs/{run_id}/fit", headers=AUTH).json()
+    assert fit["method"] == chosen and fit["chosen"] and fit["count"] == len(points) == 32
+    assert 0 < fit["x0_px"] < 640 and 0 < fit["y0_px"] < 480
+    for p, q in zip(fit["data"], points, strict=True):
+        assert (p["id"], p["zenith_deg"], p["x_px"]) == (q["id"], q["zenith_deg"], q["x_px"])
+        assert p["radius_px"] == pytest.approx(((p["x_px"] - fit["x0_px"]) ** 2 + (p["y_px"] - fit["y0_px"]) ** 2) ** 0.5)
+    errors = [p["error_deg"] for p in fit["data"]]
+    assert all(e is not None and 0 <= e < 2.0 for e in errors)  # a calibrated sensor: within a couple of degrees
+    normal = [p for p in fit["data"] if p["zenith_deg"] == 0]
+    outer = [p for p in fit["data"] if p["zenith_deg"] >= 50]
+    assert max(p["radius_px"] for p in normal) < min(p["radius_px"] for p in outer)  # θ grows with r
+
+    for method in METHODS:
+        other = client.get(f"/api/runs/{run_id}/fit", params={"method": method}, headers=AUTH)
+        assert other.status_code == 200 and other.json()["method"] == method
+
+
+def test_the_fit_route_refusals(client):
+    assert client.get("/api/runs/1/fit").status_code == 401
+    assert client.get("/api/runs/99/fit", headers=AUTH).status_code == 404
+    run_id = _finished_run(client)
+    response = client.get(f"/api/runs/{run_id}/fit", params={"method": "nonsense"}, headers=AUTH)
+    assert response.status_code == 404 and "no nonsense calibration" in response.json()["detail"]

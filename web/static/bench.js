@@ -1,0 +1,107 @@
+// Bench page: cached status, manual commands, the latest frame with its spot marked.
+import { $, api, fmt, initTokenForm, report, say } from "./common.js";
+
+let status = null;
+
+async function refreshStatus() {
+  try {
+    status = await api("/api/status");
+  } catch (err) {
+    report(err);
+    return;
+  }
+  const { engine, table, source, sensor } = status;
+  $("#s-engine").textContent = engine.state + (engine.run_id ? ` (run ${engine.run_id}, ${engine.index ?? 0}/${engine.total ?? "–"})` : "");
+  $("#s-az").textContent = table ? `${fmt(table.azimuth_deg, 3)}°` : "–";
+  $("#s-zen").textContent = table ? `${fmt(table.zenith_deg, 3)}°` : "–";
+  $("#s-moving").textContent = table ? (table.moving ? "moving" : "still") : "–";
+  $("#s-lamp").textContent = source ? `${source.lamp_on ? "on" : "standby"}${source.lamp_on && !source.warm ? " (warming up)" : ""}${source.fault ? " FAULT" : ""}` : "–";
+  $("#s-shutter").textContent = source ? (source.shutter_open ? "open" : "closed") : "–";
+  $("#s-sensor").textContent = sensor ? `${fmt(sensor.temperature_c, 1)} °C, exposure ${fmt(sensor.exposure_ms, 2)} ms` : "–";
+  $("#s-updated").textContent = (status.error ? `ERROR ${status.error} · ` : "") + (status.updated_utc ?? "–");
+  const form = $("#jog-form");
+  if (table && document.activeElement?.form !== form) {
+    form.azimuth_deg.value = fmt(table.azimuth_deg, 3);
+    form.zenith_deg.value = fmt(table.zenith_deg, 3);
+  }
+}
+
+async function command(path, body, done) {
+  try {
+    status = await api(path, { method: "POST", body });
+    say(done);
+  } catch (err) {
+    report(err);
+  }
+  refreshStatus();
+}
+
+function jog(azimuth_deg, zenith_deg) {
+  say(`moving to azimuth ${fmt(azimuth_deg)}°, zenith ${fmt(zenith_deg)}° …`);
+  return command("/api/table/jog", { azimuth_deg, zenith_deg }, `table at azimuth ${fmt(azimuth_deg)}°, zenith ${fmt(zenith_deg)}°`);
+}
+
+async function refreshFrame() {
+  const canvas = $("#frame");
+  const ctx = canvas.getContext("2d");
+  let image;
+  try {
+    const blob = await (await api("/api/frame.png", { raw: true })).blob();
+    image = await createImageBitmap(blob);
+  } catch (err) {
+    if (err.status === 404) $("#spot-text").textContent = "no frame yet: open the shutter";
+    else report(err);
+    return;
+  }
+  canvas.width = image.width;
+  canvas.height = image.height;
+  ctx.drawImage(image, 0, 0);
+  let spot = null;
+  try { spot = await api("/api/frame/spot"); } catch (_) { /* no spot */ }
+  if (spot && spot.x_px !== null && spot.y_px !== null) {
+    // pixel centres: pixel (0, 0) is centred at (0, 0), the canvas' pixel at (0.5, 0.5)
+    const x = spot.x_px + 0.5, y = spot.y_px + 0.5;
+    ctx.strokeStyle = "#ff3b30";
+    ctx.lineWidth = 1.5;
+    ctx.beginPath();
+    ctx.arc(x, y, 10, 0, 2 * Math.PI);
+    ctx.moveTo(x - 18, y); ctx.lineTo(x - 4, y); ctx.moveTo(x + 4, y); ctx.lineTo(x + 18, y);
+    ctx.moveTo(x, y - 18); ctx.lineTo(x, y - 4); ctx.moveTo(x, y + 4); ctx.lineTo(x, y + 18);
+    ctx.stroke();
+    $("#spot-text").textContent = `spot at (${fmt(spot.x_px, 2)}, ${fmt(spot.y_px, 2)}) px, peak ${fmt(spot.peak_dn, 0)} DN`;
+  } else {
+    $("#spot-text").textContent = spot?.error ? `no spot: ${spot.error}` : "no spot";
+  }
+}
+
+function init() {
+  initTokenForm(() => { refreshStatus(); refreshFrame(); });
+  $("#lamp-on").onclick = () => command("/api/source/lamp", { on: true }, "lamp on");
+  $("#lamp-off").onclick = () => command("/api/source/lamp", { on: false }, "lamp to standby");
+  $("#shutter-open").onclick = () => command("/api/source/shutter", { open: true }, "shutter open");
+  $("#shutter-close").onclick = () => command("/api/source/shutter", { open: false }, "shutter closed");
+  $("#stop").onclick = async () => {
+    try { say((await api("/api/stop", { method: "POST" })).message, true); } catch (err) { report(err); }
+    refreshStatus();
+  };
+  $("#jog-form").addEventListener("submit", (e) => {
+    e.preventDefault();
+    const f = e.target;
+    jog(Number(f.azimuth_deg.value), Number(f.zenith_deg.value));
+  });
+  for (const button of document.querySelectorAll("[data-jog]")) {
+    button.addEventListener("click", () => {
+      if (!status?.table) return say("no table position yet", true);
+      const [axis, sign] = button.dataset.jog.split(":");
+      const step = Number($("#jog-step").value) * Number(sign);
+      const { azimuth_deg, zenith_deg } = status.table;
+      jog(axis === "az" ? azimuth_deg + step : azimuth_deg, axis === "zen" ? zenith_deg + step : zenith_deg);
+    });
+  }
+  refreshStatus();
+  refreshFrame();
+  setInterval(refreshStatus, 1000);
+  setInterval(() => { if ($("#frame-live").checked && !document.hidden) refreshFrame(); }, 2000);
+}
+
+init();

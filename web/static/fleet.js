@@ -1,0 +1,42 @@
+// Fleet of a campaign: one row per sensor with its run and chosen calibration.
+import { $, api, el, fmt, initTokenForm, query, report } from "./common.js";
+
+const campaignParam = query("campaign");
+
+async function listCampaigns() {
+  $("#campaign-picker").hidden = false;
+  const campaigns = (await api("/api/campaigns")).data.slice().reverse();
+  $("#campaigns-table tbody").replaceChildren(...campaigns.map((c) => el("tr", {},
+    el("td", {}, el("a", { href: `/fleet?campaign=${c.id}` }, `campaign ${c.id}`)), el("td", {}, c.name),
+    el("td", {}, c.status), el("td", {}, String(c.n_runs)), el("td", {}, c.created_utc))));
+  if (!campaigns.length) $("#campaigns-table tbody").append(el("tr", {}, el("td", { colspan: 5 }, "no campaign yet")));
+}
+
+async function showFleet(id) {
+  $("#fleet-section").hidden = false;
+  const fleet = await api(`/api/campaigns/${id}/fleet`);
+  const done = fleet.data.filter((f) => f.status === "done").length;
+  $("#fleet-heading").textContent = `Campaign ${id}: ${done} / ${fleet.count} sensors done`;
+  $("#fleet tbody").replaceChildren(...fleet.data.map((f) => {
+    const held = f.metrics?.heldout || {};
+    return el("tr", {},
+      el("td", {}, String(f.position + 1)), el("td", {}, f.sensor_id), el("td", {}, f.status + (f.run_status && f.run_status !== f.status ? ` (${f.run_status})` : "")),
+      el("td", {}, f.run_id ? el("a", { href: `/results?run=${f.run_id}` }, `run ${f.run_id}`) : "–"),
+      el("td", {}, f.run_id ? `${f.n_points_recorded ?? 0} / ${f.n_points_planned ?? "–"}` : "–"),
+      el("td", {}, f.method ?? "–"), el("td", {}, fmt(held.rms_vector_deg)), el("td", {}, fmt(held.p95_vector_deg)),
+      el("td", {}, fmt(held.max_vector_deg)), el("td", {}, f.exit_reason ?? f.metrics?.error ?? ""));
+  }));
+}
+
+async function init() {
+  try {
+    if (campaignParam && /^\d+$/.test(campaignParam)) await showFleet(Number(campaignParam));
+    else await listCampaigns();
+  } catch (err) {
+    report(err);
+  }
+}
+
+initTokenForm(init);
+init();
+if (campaignParam) setInterval(() => { if ($("#fleet-live").checked && !document.hidden) init(); }, 5000);

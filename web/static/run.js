@@ -1,0 +1,124 @@
+// Live run: progress, ETA and the spot map from the server-sent events; pause / resume / abort.
+/* global Plotly */
+import { $, api, duration, el, getToken, initTokenForm, matrixLayout, PLOT_CONFIG, report, say } from "./common.js";
+
+const spots = { x: [], y: [], zenith: [], text: [] };
+let runId = null;
+let source = null;
+let drawPending = false;
+
+function draw() {
+  if (drawPending) return;
+  drawPending = true;
+  requestAnimationFrame(() => {
+    drawPending = false;
+    Plotly.react("spot-plot", [{
+      type: "scatter",
+      mode: "markers", name: "spots", x: spots.x, y: spots.y, text: spots.text,
+      marker: { size: 5, color: spots.zenith, colorscale: "Viridis", colorbar: { title: { text: "zenith stage [°]" } } },
+      hovertemplate: "(%{x:.2f}, %{y:.2f}) px<br>%{text}<extra></extra>",
+    }], { ...matrixLayout(runId ? `run ${runId}` : "spots"), showlegend: false }, PLOT_CONFIG);
+  });
+}
+
+function resetSpots() {
+  for (const k of Object.keys(spots)) spots[k] = [];
+  draw();
+}
+
+function addSpot(x, y, zenith, label) {
+  if (x === null || y === null || x === undefined || y === undefined) return;
+  spots.x.push(x); spots.y.push(y); spots.zenith.push(zenith); spots.text.push(label);
+}
+
+function progress(index, total, eta_s) {
+  const bar = $("#progress");
+  bar.max = total || 1;
+  bar.value = index || 0;
+  $("#progress-text").textContent = `${index ?? 0} / ${total ?? "–"}`;
+  $("#eta").textContent = duration(eta_s);
+}
+
+function log(kind, text) {
+  const list = $("#log");
+  const time = new Date().toLocaleTimeString();
+  list.prepend(el("li", { class: kind }, `${time} ${kind}: ${text}`));
+  while (list.children.length > 300) list.lastChild.remove();
+}
+
+function setRun(id, sensor) {
+  runId = id;
+  $("#run-title").textContent = id ? `${id}${sensor ? ` · sensor ${sensor}` : ""}` : "– waiting for events";
+  $("#result-link").replaceChildren();
+}
+
+function finishedLink(id) {
+  if (id) $("#result-link").replaceChildren(el("a", { href: `/results?run=${id}` }, `results of run ${id}`));
+}
+
+// what the bench is doing now, and the points already recorded (joining a run midway)
+async function catchUp() {
+  let status;
+  try { status = await api("/api/status"); } catch (err) { report(err); return; }
+  const e = status.engine;
+  $("#engine-state").textContent = e.state;
+  progress(e.index, e.total, e.eta_s);
+  if (e.run_id && e.run_id !== runId) {
+    setRun(e.run_id, e.sensor_id);
+    resetSpots();
+    try {
+      const points = await api(`/api/runs/${e.run_id}/points`);
+      for (const p of points.data) addSpot(p.x_px, p.y_px, p.zenith_stage_deg, p.key);
+      draw();
+    } catch (err) { report(err); }
+    if (e.state === "idle") finishedLink(e.run_id);
+  }
+}
+
+const HANDLERS = {
+  queued: (d) => log("queued", `campaign ${d.campaign_id}: ${d.points} points per sensor`),
+  "run-started": (d) => { setRun(d.run_id, d.sensor_id); resetSpots(); progress(0, null, null); log("run-started", `run ${d.run_id} on ${d.sensor_id}`); },
+  state: (d) => { $("#engine-state").textContent = d.state; log("state", `${d.previous} → ${d.state}${d.reason ? ` (${d.reason})` : ""}`); },
+  point: (d) => {
+    if (d.run_id && d.run_id !== runId) setRun(d.run_id);
+    progress(d.index, d.total, d.eta_s);
+    for (const [x, y] of d.spots || []) addSpot(x, y, d.zenith_stage_deg, d.key);
+    draw();
+  },
+  log: (d) => log("log", d.message),
+  warning: (d) => log("warning", d.message ?? JSON.stringify(d)),
+  error: (d) => log("error", d.message ?? JSON.stringify(d)),
+  finished: (d) => { log("finished", `${d.status}${d.reason ? `: ${d.reason}` : ""}`); finishedLink(d.run_id ?? runId); $("#eta").textContent = "–"; },
+  "campaign-finished": (d) => log("campaign-finished", `campaign ${d.campaign_id}`),
+};
+
+function connect() {
+  if (source) source.close();
+  const token = getToken();
+  // EventSource cannot send an Authorization header: the token goes as ?token=
+  source = new EventSource(token ? `/api/events?token=${encodeURIComponent(token)}` : "/api/events");
+  source.onopen = () => { $("#stream-state").textContent = "connected"; catchUp(); };
+  source.onerror = () => {
+    const closed = source.readyState === EventSource.CLOSED;
+    $("#stream-state").textContent = closed ? "refused (check the token)" : "reconnecting …";
+    if (closed) say("the event stream was refused: paste the token", true);
+  };
+  for (const [kind, handle] of Object.entries(HANDLERS)) {
+    source.addEventListener(kind, (message) => {
+      try { handle(JSON.parse(message.data)); } catch (err) { console.error(kind, err); }
+    });
+  }
+}
+
+async function control(action) {
+  try { say((await api(`/api/run/${action}`, { method: "POST" })).message); } catch (err) { report(err); }
+}
+
+initTokenForm(connect);
+$("#pause").onclick = () => control("pause");
+$("#resume").onclick = () => control("resume");
+$("#abort").onclick = () => { if (confirm("Abort the run? Its recorded points stay.")) control("abort"); };
+draw();
+catchUp();
+connect();
+setInterval(() => { if (!document.hidden) catchUp(); }, 10000);
