@@ -38,7 +38,7 @@ class WebSettings(BaseModel):
     public_read: bool = False
     token: str = Field(min_length=16)
     sse_keepalive_s: float = Field(15.0, gt=0)
-    sse_poll_s: float = Field(0.05, gt=0, le=1.0)
+    sse_poll_s: float = Field(0.2, gt=0, le=1.0)  # 50 clients wake 250 times a second, not 1000
 
     @field_validator("token")
     @classmethod
