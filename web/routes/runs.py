@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from collections import defaultdict
 
 from fastapi import APIRouter
+
+from bench.results import point_means
 
 from ..deps import READ, CatalogueDep
 from ..schemas import CalibrationsPublic, PointsPublic, RunPublic, RunsPublic
@@ -29,16 +30,7 @@ def read_run(run_id: int, catalogue: CatalogueDep):
 @router.get("/{run_id}/points", response_model=PointsPublic, summary="Points of a run")
 def read_points(run_id: int, catalogue: CatalogueDep):
     """The run's points in recording order, each with the mean spot of its good readings."""
-    catalogue.run(run_id)  # "no run N" rather than an empty list
-    spots = defaultdict(list)
-    for reading in catalogue.readings(run_id):
-        if reading["status"] == "ok" and reading["x_px"] is not None:
-            spots[reading["point_id"]].append((reading["x_px"], reading["y_px"]))
-    points = []
-    for point in catalogue.points(run_id):
-        good = spots.get(point["id"], [])
-        mean = [sum(c) / len(good) for c in zip(*good)] if good else [None, None]
-        points.append({**point, "n_ok": len(good), "x_px": mean[0], "y_px": mean[1]})
+    points = point_means(catalogue, run_id)
     return PointsPublic(run_id=run_id, data=points, count=len(points))
 
 
