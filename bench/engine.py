@@ -374,22 +374,16 @@ class RunEngine:
 
     def _wait_warm(self) -> None:
         """Wait for the lamp, watching for an abort (an arc lamp warms for half an hour)."""
-        source = self.devices.source
-        deadline = time.monotonic() + self.warm_timeout_s
-        while True:
+        def pause(seconds):
+            with self._lock:
+                self._wake.wait(seconds)  # an abort wakes it at once
             if self._abort:
                 raise Aborted()
-            status = source.status()
-            if status.fault:
-                raise DeviceFault(source.name, "lamp fault while warming up")
-            if status.warm:
-                return
-            if not status.lamp_on:
-                raise DeviceFault(source.name, "lamp is off: it cannot warm up")
-            if time.monotonic() > deadline:
-                raise DeviceTimeout(source.name, f"lamp not warm after {self.warm_timeout_s} s")
-            with self._lock:
-                self._wake.wait(min(0.5, self.interlocks.poll_s))
+
+        if self._abort:
+            raise Aborted()
+        self.devices.source.wait_until_warm(timeout_s=self.warm_timeout_s, poll_s=min(0.5, self.interlocks.poll_s),
+                                            pause=pause)
 
     def _read(self, repeat: int) -> Reading:
         frame = self.devices.sensor.capture()

@@ -213,8 +213,11 @@ class SunSimulator(ABC):
     @abstractmethod
     def identify(self) -> str: ...
 
-    def wait_until_warm(self, *, timeout_s: float = 3600.0, poll_s: float = 0.5) -> None:
-        """Poll until the lamp is warm; a lamp fault raises :class:`DeviceFault`."""
+    def wait_until_warm(self, *, timeout_s: float = 3600.0, poll_s: float = 0.5, pause=time.sleep) -> None:
+        """Poll until the lamp is warm; a lamp fault raises :class:`DeviceFault`.
+
+        `pause(poll_s)` waits between polls; a caller that must be able to cancel the wait (the run engine, on
+        an abort) passes one that raises."""
         deadline = time.monotonic() + timeout_s
         while True:
             status = self.status()
@@ -226,7 +229,7 @@ class SunSimulator(ABC):
                 raise DeviceFault(self.name, "lamp is off: it cannot warm up (switch it on first)")
             if time.monotonic() > deadline:
                 raise DeviceTimeout(self.name, f"lamp not warm after {timeout_s} s")
-            time.sleep(poll_s)
+            pause(poll_s)
 
 
 @dataclass(frozen=True)

@@ -11,14 +11,19 @@ from importlib import resources
 from pathlib import Path
 
 from fastapi import APIRouter, FastAPI, HTTPException
-from fastapi.responses import FileResponse
+from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.staticfiles import StaticFiles
 
 STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
 
-#: URL path → page file in STATIC_DIR
+LAYOUT = Path(__file__).resolve().parent.parent / "templates" / "layout.html"
+
+#: URL path → page file in STATIC_DIR (the page's <main>; the head, the navigation and the token form are
+#: the layout's, written once)
 PAGES = {"/": "bench.html", "/launch": "launch.html", "/run": "run.html", "/results": "results.html",
          "/fleet": "fleet.html"}
+TITLES = {"/": "Bench", "/launch": "Campaign launcher", "/run": "Live run", "/results": "Results", "/fleet": "Fleet"}
+PLOTS = {"/run", "/results"}  # the pages that load plotly.js
 
 router = APIRouter(include_in_schema=False)
 
@@ -39,15 +44,25 @@ def plotly_js():
     return FileResponse(path, media_type="text/javascript", headers={"Cache-Control": "max-age=86400"})
 
 
-def _page_route(filename: str):
+def render_page(path: str) -> str:
+    """The page at `path`: its <main> in the layout, its own link marked, its scripts in the head."""
+    name = PAGES[path].removesuffix(".html")
+    scripts = ('  <script src="/static/plotly.min.js"></script>\n' if path in PLOTS else "")
+    scripts += f'  <script type="module" src="/static/{name}.js"></script>\n'
+    main = (STATIC_DIR / PAGES[path]).read_text(encoding="utf-8").split("\n", 1)[1]  # drop the first comment line
+    html = LAYOUT.read_text(encoding="utf-8").format(title=TITLES[path], scripts=scripts, main=main)
+    return html.replace(f'<a href="{path}">', f'<a href="{path}" class="here">', 1)
+
+
+def _page_route(path: str):
     def page():
-        return FileResponse(STATIC_DIR / filename, media_type="text/html", headers={"Cache-Control": "no-cache"})
-    page.__name__ = f"page_{filename.removesuffix('.html')}"
+        return HTMLResponse(render_page(path), headers={"Cache-Control": "no-cache"})
+    page.__name__ = f"page_{PAGES[path].removesuffix('.html')}"
     return page
 
 
 for _path, _file in PAGES.items():
-    router.add_api_route(_path, _page_route(_file), methods=["GET"], name=f"page-{_file}")
+    router.add_api_route(_path, _page_route(_path), methods=["GET"], name=f"page-{_file}")
 
 
 def install(app: FastAPI) -> None:
