@@ -259,14 +259,20 @@ def serve_command(
     from .service import BenchService
 
     token, created = load_or_create_token()
+    token_file = escape(str(default_config_dir() / "token"))
     if created:  # shown once; it stays in the user's config directory
-        out.print(f"API token (created now, kept in {escape(str(default_config_dir()))}): [bold]{token}[/]")
+        out.print(f"API token (created now, kept in {token_file}): [bold]{token}[/]", soft_wrap=True)
     settings = WebSettings(host=host, port=port, public_read=public_read, token=token)
     bench_file = load_bench_file(bench) if bench else BenchFile()
     with _catalogue(catalogue) as cat:
         service = BenchService(bench_file, cat, time_scale=time_scale).start()
         try:
-            out.print(f"sunbench API on http://{host}:{port}/docs (Ctrl-C to stop)")
+            where = escape(str(bench)) if bench else "the simulated bench"
+            if bench_file.simulation is not None and time_scale is not None:
+                where += f", simulated time ×{time_scale:g}"
+            out.print(f"sunbench dashboard on http://{host}:{port}/ ({where})", soft_wrap=True)
+            out.print(f"API and its documentation: http://{host}:{port}/docs · the token: {token_file} · Ctrl-C stops",
+                      soft_wrap=True)
             serve(create_app(service, settings=settings))
         finally:
             service.close()

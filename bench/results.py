@@ -10,7 +10,7 @@ from collections import defaultdict
 
 import numpy as np
 
-from calibration.geometry import angular_error_deg, spot_radius_px, wrap_deg
+from calibration.geometry import angular_error_deg, azimuth_measured_deg, spot_radius_px, wrap_deg
 from calibration.models import calibration_from_dict
 
 
@@ -39,8 +39,9 @@ def _finite(values) -> list:
 
 
 def fit_residuals(catalogue, run_id: int, method: str | None = None) -> dict:
-    """Each point with a spot, seen through one calibration (default: the chosen one): its radius from the
-    calibration's centre (seed 003 eq. 7), the direction the calibration gives and the residuals (eq. 13).
+    """Each point with a spot, seen through one calibration (default: the chosen one): its radius and its
+    measured azimuth about the calibration's centre (seed 003 eqs. 7, 10), the direction the calibration gives
+    and the residuals (eq. 13).
 
     Raises :class:`NoCalibration` when the run has no such calibration; the calibration's own format errors
     (:class:`calibration.errors.CalibrationFormatError`) pass through.
@@ -58,16 +59,18 @@ def fit_residuals(catalogue, run_id: int, method: str | None = None) -> dict:
     azimuth = np.array([p["azimuth_body_deg"] for p in points], dtype=float)
     if points:
         radius = spot_radius_px(x, y, x0, y0)
+        azimuth_spot = azimuth_measured_deg(x, y, x0, y0)
         with np.errstate(invalid="ignore"):
             zenith_fit, azimuth_fit = (np.asarray(a, dtype=float) for a in calibration.apply(x, y))
             error = angular_error_deg(zenith_fit, azimuth_fit, zenith, azimuth)
     else:
-        radius = zenith_fit = azimuth_fit = error = np.empty(0)
-    columns = zip(points, radius, _finite(zenith_fit), _finite(azimuth_fit), _finite(zenith_fit - zenith),
-                  _finite(wrap_deg(azimuth_fit - azimuth)), _finite(error), strict=True)
+        radius = azimuth_spot = zenith_fit = azimuth_fit = error = np.empty(0)
+    columns = zip(points, radius, azimuth_spot, _finite(zenith_fit), _finite(azimuth_fit),
+                  _finite(zenith_fit - zenith), _finite(wrap_deg(azimuth_fit - azimuth)), _finite(error), strict=True)
     data = [{"id": p["id"], "stage": p["stage"], "zenith_deg": p["zenith_deg"], "azimuth_deg": p["azimuth_body_deg"],
-             "x_px": p["x_px"], "y_px": p["y_px"], "radius_px": float(r), "zenith_fit_deg": zf,
-             "azimuth_fit_deg": af, "zenith_residual_deg": dz, "azimuth_residual_deg": da, "error_deg": e}
-            for p, r, zf, af, dz, da, e in columns]
+             "x_px": p["x_px"], "y_px": p["y_px"], "radius_px": float(r), "azimuth_spot_deg": float(a),
+             "zenith_fit_deg": zf, "azimuth_fit_deg": af, "zenith_residual_deg": dz, "azimuth_residual_deg": da,
+             "error_deg": e}
+            for p, r, a, zf, af, dz, da, e in columns]
     return {"run_id": run_id, "method": record["method"], "chosen": bool(record["chosen"]), "x0_px": x0,
             "y0_px": y0, "data": data, "count": len(data)}

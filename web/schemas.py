@@ -37,11 +37,18 @@ class EnginePublic(_Out):
     eta_s: float | None = None
 
 
+class SensorStatusPublic(_Out):
+    temperature_c: float | None = None
+    exposure_ms: float | None = None
+    width_px: int | None = Field(None, description="Width of the sensor's frames [px]")
+    height_px: int | None = Field(None, description="Height of the sensor's frames [px]")
+
+
 class StatusPublic(_Out):
     engine: EnginePublic
     table: TablePublic | None = None
     source: dict[str, Any] | None = None
-    sensor: dict[str, Any] | None = None
+    sensor: SensorStatusPublic | None = None
     error: str | None = None
     updated_utc: str | None = None
 
@@ -175,4 +182,18 @@ class CalibrationPublic(_Out):
 class CalibrationsPublic(_Out):
     run_id: int
     data: list[CalibrationPublic]
+    count: int
+
+
+class LogEventPublic(_Out):
+    id: int
+    t_utc: str
+    kind: str = Field(description="run-started, state, log, warning, error, finished, …")
+    message: str
+    data: dict[str, Any] | None = None
+
+
+class RunLogPublic(_Out):
+    run_id: int
+    data: list[LogEventPublic]
     count: int

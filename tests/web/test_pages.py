@@ -4,6 +4,7 @@ the read-only fit route the result plots draw, and the event stream's ?token= fo
 import re
 import time
 
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
@@ -176,6 +177,10 @@ def test_the_fit_route_gives_radius_and_residuals_of_each_method(client):
     normal = [p for p in fit["data"] if p["zenith_deg"] == 0]
     outer = [p for p in fit["data"] if p["zenith_deg"] >= 50]
     assert max(p["radius_px"] for p in normal) < min(p["radius_px"] for p in outer)  # θ grows with r
+    # eq. 10 about the fitted centre: off the axis, the spot's azimuth is the bench's plus one offset (eq. 11's
+    # b0: the detector's axes against the bench's zero, and its in-plane rotation), the same for every point
+    offsets = np.array([(p["azimuth_spot_deg"] - p["azimuth_deg"] + 180) % 360 - 180 for p in outer])
+    assert np.ptp(offsets) < 2
 
     for method in METHODS:
         other = client.get(f"/api/runs/{run_id}/fit", params={"method": method}, headers=AUTH)

@@ -26,6 +26,8 @@ class FitPointPublic(_Out):
     x_px: float
     y_px: float
     radius_px: float = Field(description="Distance of the mean spot from the calibration's centre [px]")
+    azimuth_spot_deg: float = Field(description="Azimuth of the mean spot about the calibration's centre, "
+                                                "seed 003 eq. 10, before calibration [°]")
     zenith_fit_deg: float | None = Field(description="Zenith the calibration gives for the mean spot [°]")
     azimuth_fit_deg: float | None
     zenith_residual_deg: float | None = Field(description="Fitted minus true zenith [°]")

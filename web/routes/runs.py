@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-
 from fastapi import APIRouter
 
 from bench.results import point_means
 
 from ..deps import READ, CatalogueDep
-from ..schemas import CalibrationsPublic, PointsPublic, RunPublic, RunsPublic
+from ..schemas import CalibrationsPublic, PointsPublic, RunLogPublic, RunPublic, RunsPublic
 
 router = APIRouter(prefix="/api/runs", tags=["runs"], dependencies=READ,
                    responses={404: {"description": "No such run"}})
@@ -40,3 +39,12 @@ def read_calibrations(run_id: int, catalogue: CatalogueDep):
     catalogue.run(run_id)
     calibrations = catalogue.calibrations(run_id)
     return CalibrationsPublic(run_id=run_id, data=calibrations, count=len(calibrations))
+
+
+@router.get("/{run_id}/log", response_model=RunLogPublic, summary="Log of a run")
+def read_log(run_id: int, catalogue: CatalogueDep, after_id: int = 0):
+    """What the engine logged during the run (state changes, warnings, errors, its end), oldest first;
+    `after_id` returns only the events after the one a client saw last."""
+    catalogue.run(run_id)
+    events = catalogue.events(run_id, after_id)
+    return RunLogPublic(run_id=run_id, data=events, count=len(events))

@@ -11,11 +11,12 @@ async function refreshStatus() {
     return;
   }
   const { engine, table, source, sensor } = status;
-  $("#s-engine").textContent = engine.state + (engine.run_id ? ` (run ${engine.run_id}, ${engine.index ?? 0}/${engine.total ?? "–"})` : "");
+  const last = engine.state === "idle" ? "last run" : "run";
+  $("#s-engine").textContent = engine.state + (engine.run_id ? ` (${last} ${engine.run_id}, ${engine.index ?? 0}/${engine.total ?? "–"})` : "");
   $("#s-az").textContent = table ? `${fmt(table.azimuth_deg, 3)}°` : "–";
   $("#s-zen").textContent = table ? `${fmt(table.zenith_deg, 3)}°` : "–";
   $("#s-moving").textContent = table ? (table.moving ? "moving" : "still") : "–";
-  $("#s-lamp").textContent = source ? `${source.lamp_on ? "on" : "standby"}${source.lamp_on && !source.warm ? " (warming up)" : ""}${source.fault ? " FAULT" : ""}` : "–";
+  $("#s-lamp").textContent = source ? `${source.lamp_on ? "on" : "off"}${source.lamp_on && !source.warm ? " (warming up)" : ""}${source.fault ? " FAULT" : ""}` : "–";
   $("#s-shutter").textContent = source ? (source.shutter_open ? "open" : "closed") : "–";
   $("#s-sensor").textContent = sensor ? `${fmt(sensor.temperature_c, 1)} °C, exposure ${fmt(sensor.exposure_ms, 2)} ms` : "–";
   $("#s-updated").textContent = (status.error ? `ERROR ${status.error} · ` : "") + (status.updated_utc ?? "–");

@@ -98,15 +98,26 @@ export function initTokenForm(onChange) {
 
 export const query = (name) => new URLSearchParams(location.search).get(name);
 
-// the common plotly layout of a detector map: 640×480 pixels, y down, square pixels
-export const MATRIX = { width: 640, height: 480 };
-export function matrixLayout(title) {
+// the common plotly layout: title on top, legend under the plot (clear of the x-axis title)
+export function plotLayout(title, xTitle, yTitle, extra = {}) {
   return {
     title: { text: title },
-    xaxis: { title: { text: "x [px]" }, range: [0, MATRIX.width], constrain: "domain" },
-    yaxis: { title: { text: "y [px]" }, range: [MATRIX.height, 0], scaleanchor: "x", constrain: "domain" },
+    xaxis: { title: { text: xTitle } },
+    yaxis: { title: { text: yTitle } },
     margin: { t: 40, r: 10, b: 50, l: 60 },
-    showlegend: true,
+    legend: { orientation: "h", x: 0, y: -0.18, yanchor: "top" },
+    ...extra,
   };
+}
+
+// a detector map: y down, square pixels; the detector's size from the status (GET /api/status: sensor),
+// else the axes fit the points
+export function matrixLayout(title, sensor) {
+  const layout = plotLayout(title, "x [px]", "y [px]");
+  const size = sensor?.width_px && sensor?.height_px;
+  layout.xaxis = { ...layout.xaxis, constrain: "domain", ...(size ? { range: [0, sensor.width_px] } : {}) };
+  layout.yaxis = { ...layout.yaxis, scaleanchor: "x", constrain: "domain",
+    ...(size ? { range: [sensor.height_px, 0] } : { autorange: "reversed" }) };
+  return layout;
 }
 export const PLOT_CONFIG = { displaylogo: false, responsive: true };

@@ -1,7 +1,7 @@
-// Results of a run: spot map, zenith vs radius, the metrics of every method, residuals.
+// Results of a run: the metrics of every method (table 4.1) and seed 003's figures 4.4 and 4.6–4.9.
 // The radius and the fitted directions come from GET /api/runs/{id}/fit (computed by the calibration code).
 /* global Plotly */
-import { $, api, download, el, fmt, initTokenForm, matrixLayout, PLOT_CONFIG, query, report } from "./common.js";
+import { $, api, download, el, fmt, initTokenForm, matrixLayout, PLOT_CONFIG, plotLayout, query, report } from "./common.js";
 
 const runParam = query("run");
 
@@ -40,7 +40,7 @@ function metricsTable(calibrations) {
   }));
 }
 
-function spotMap(points, fit) {
+function spotMap(points, fit, sensor) {
   $("#spot-section").hidden = false;
   const good = points.filter((p) => p.x_px !== null);
   const traces = [{
@@ -53,37 +53,82 @@ function spotMap(points, fit) {
     traces.push({ type: "scatter", mode: "markers", name: `centre (${fit.method})`, x: [fit.x0_px], y: [fit.y0_px],
       marker: { symbol: "x", size: 12, color: "red" } });
   }
-  Plotly.react("spot-plot", traces, { ...matrixLayout("spot centres on the detector"), legend: { orientation: "h" } }, PLOT_CONFIG);
+  Plotly.react("spot-plot", traces, matrixLayout("spot centres on the detector", sensor), PLOT_CONFIG);
 }
 
+// fig. 4.6: θ against r, the bench's points and the calibration through them
 function radiusPlot(fit) {
-  $("#radius-section").hidden = false;
   const byRadius = fit.data.slice().sort((a, b) => a.radius_px - b.radius_px);
   Plotly.react("radius-plot", [
     { type: "scatter", mode: "markers", name: "bench (true zenith)", x: fit.data.map((p) => p.radius_px),
       y: fit.data.map((p) => p.zenith_deg), marker: { size: 6 } },
     { type: "scatter", mode: "lines", name: `${fit.method} at the measured spots`, x: byRadius.map((p) => p.radius_px),
       y: byRadius.map((p) => p.zenith_fit_deg), line: { width: 1.5 } },
-  ], {
-    title: { text: `zenith vs radius from the ${fit.method} centre (${fmt(fit.x0_px, 2)}, ${fmt(fit.y0_px, 2)}) px` },
-    xaxis: { title: { text: "radius r [px]" } }, yaxis: { title: { text: "zenith θ [°]" } },
-    margin: { t: 40, r: 10, b: 50, l: 60 }, legend: { orientation: "h" },
-  }, PLOT_CONFIG);
+  ], plotLayout(`zenith vs radius from the ${fit.method} centre (${fmt(fit.x0_px, 2)}, ${fmt(fit.y0_px, 2)}) px`,
+    "radius r [px]", "zenith θ [°]"), PLOT_CONFIG);
 }
 
-function residualPlot(fit) {
-  $("#residual-section").hidden = false;
-  const x = fit.data.map((p) => p.zenith_deg);
-  const text = fit.data.map((p) => `azimuth ${fmt(p.azimuth_deg, 1)}°`);
-  Plotly.react("residual-plot", [
-    { type: "scatter", mode: "markers", name: "angular error", x, y: fit.data.map((p) => p.error_deg), text },
-    { type: "scatter", mode: "markers", name: "zenith residual", x, y: fit.data.map((p) => p.zenith_residual_deg), text },
-  ], {
-    title: { text: `residuals of ${fit.method} at the run's points (fitted and held-out together)` },
-    xaxis: { title: { text: "true zenith [°]" } }, yaxis: { title: { text: "residual [°]" } },
-    margin: { t: 40, r: 10, b: 50, l: 60 }, legend: { orientation: "h" },
-  }, PLOT_CONFIG);
+// the points of each bench azimuth, in zenith order
+function byAzimuth(data) {
+  const groups = new Map();
+  for (const p of data) {
+    const key = fmt(p.azimuth_deg, 1);
+    if (!groups.has(key)) groups.set(key, []);
+    groups.get(key).push(p);
+  }
+  return [...groups.entries()].sort((a, b) => Number(a[0]) - Number(b[0]))
+    .map(([key, points]) => [key, points.sort((a, b) => a.zenith_deg - b.zenith_deg)]);
 }
+
+// fig. 4.7: zenith residuals, one line per azimuth (a tilted detector shows mirror-symmetric pairs)
+function zenithResidualPlot(fit) {
+  const traces = byAzimuth(fit.data.filter((p) => p.zenith_deg > 0.5)).map(([azimuth, points]) => ({
+    type: "scatter", mode: "lines+markers", name: `φ ${azimuth}°`, x: points.map((p) => p.zenith_deg),
+    y: points.map((p) => p.zenith_residual_deg), marker: { size: 5 },
+  }));
+  Plotly.react("zenith-residual-plot", traces, plotLayout(`zenith residuals of ${fit.method} by azimuth (fig. 4.7)`,
+    "true zenith θ [°]", "θ fitted − θ true [°]"), PLOT_CONFIG);
+}
+
+// fig. 4.8: the azimuth set on the bench against the spot's azimuth (eq. 10), and the calibration's azimuth;
+// near the axis the azimuth is undefined, so points within 5° of it are left out. φ_meas is unwrapped
+// against the set azimuth plus their median offset (eq. 11's b0), so the line does not jump at 0°/360°.
+function azimuthPlot(fit) {
+  const wrap = (a) => ((a + 180) % 360 + 360) % 360 - 180;
+  const off = fit.data.filter((p) => p.zenith_deg >= 5 && p.azimuth_fit_deg !== null);
+  const offsets = off.map((p) => wrap(p.azimuth_spot_deg - p.azimuth_deg)).sort((a, b) => a - b);
+  const b0 = offsets.length ? offsets[Math.floor(offsets.length / 2)] : 0;
+  const meas = off.map((p) => p.azimuth_deg + b0 + wrap(p.azimuth_spot_deg - p.azimuth_deg - b0));
+  const order = off.map((_, i) => i).sort((i, j) => meas[i] - meas[j]);
+  Plotly.react("azimuth-plot", [
+    { type: "scatter", mode: "markers", name: "bench azimuth φ set", x: meas, y: off.map((p) => p.azimuth_deg),
+      text: off.map((p) => `zenith ${fmt(p.zenith_deg, 1)}°`), marker: { size: 6 } },
+    { type: "scatter", mode: "lines", name: `${fit.method} azimuth`, x: order.map((i) => meas[i]),
+      y: order.map((i) => off[i].azimuth_deg + wrap(off[i].azimuth_fit_deg - off[i].azimuth_deg)), line: { width: 1.5 } },
+    { type: "scatter", mode: "markers", name: "residual (right axis)", x: meas, yaxis: "y2",
+      y: off.map((p) => p.azimuth_residual_deg), marker: { size: 4, symbol: "diamond" } },
+  ], plotLayout(`azimuth of ${fit.method} against the spot's azimuth (fig. 4.8)`, "φ meas, eq. 10 [°]", "φ [°]",
+    { yaxis2: { title: { text: "residual [°]" }, overlaying: "y", side: "right", zeroline: false },
+      margin: { t: 40, r: 60, b: 50, l: 60 } }), PLOT_CONFIG);
+}
+
+// azimuth is an angle: 0° and 360° get one colour
+const CYCLIC = [[0, "#d62728"], [0.25, "#1f77b4"], [0.5, "#2ca02c"], [0.75, "#9467bd"], [1, "#d62728"]];
+
+// fig. 4.9: the angle between the calibrated and the true direction, against zenith (fitted and held-out
+// points together)
+function errorPlot(fit) {
+  Plotly.react("error-plot", [{
+    type: "scatter", mode: "markers", name: "vector error", x: fit.data.map((p) => p.zenith_deg),
+    y: fit.data.map((p) => p.error_deg), text: fit.data.map((p) => `azimuth ${fmt(p.azimuth_deg, 1)}°`),
+    marker: { size: 6, color: fit.data.map((p) => p.azimuth_deg), colorscale: CYCLIC, cmin: 0, cmax: 360,
+      colorbar: { title: { text: "azimuth [°]" } } },
+    hovertemplate: "θ %{x:.1f}°: %{y:.4f}°<br>%{text}<extra></extra>",
+  }], plotLayout(`vector error of ${fit.method} against zenith (fig. 4.9)`,
+    "true zenith θ [°]", "vector error [°]", { showlegend: false }), PLOT_CONFIG);
+}
+
+const FIT_PLOTS = [radiusPlot, zenithResidualPlot, azimuthPlot, errorPlot];
 
 function downloads(runId, method) {
   const button = (label, path, filename) => el("button", { onclick: () => download(path, filename).catch(report) }, label);
@@ -93,20 +138,22 @@ function downloads(runId, method) {
       button(`${method} C header`, `/api/calibrations/${runId}/${method}.h`, `run-${runId}-${method}.h`)] : []));
 }
 
-async function showMethod(runId, points, method) {
+async function showMethod(runId, points, method, sensor) {
   downloads(runId, method);
   let fit = null;
   if (method) {
     try { fit = await api(`/api/runs/${runId}/fit?method=${encodeURIComponent(method)}`); } catch (err) { report(err); }
   }
-  spotMap(points, fit);
-  if (fit) { radiusPlot(fit); residualPlot(fit); }
+  spotMap(points, fit, sensor);
+  $("#fit-plots").hidden = !fit;
+  if (fit) for (const plot of FIT_PLOTS) plot(fit);
 }
 
 async function showRun(runId) {
   $("#run-summary").hidden = false;
-  const [run, points, calibrations] = await Promise.all([
-    api(`/api/runs/${runId}`), api(`/api/runs/${runId}/points`), api(`/api/runs/${runId}/calibrations`)]);
+  const [run, points, calibrations, status] = await Promise.all([
+    api(`/api/runs/${runId}`), api(`/api/runs/${runId}/points`), api(`/api/runs/${runId}/calibrations`),
+    api("/api/status")]);
   $("#run-heading").textContent = `Run ${run.id} · sensor ${run.sensor_id}`;
   $("#run-info").textContent = `${run.plan_name}, ${run.status}${run.exit_reason ? ` (${run.exit_reason})` : ""}, `
     + `${run.n_points_recorded} / ${run.n_points_planned ?? "–"} points, ${run.started_utc ?? "–"} → ${run.ended_utc ?? "–"}`;
@@ -114,9 +161,9 @@ async function showRun(runId) {
   const chosen = usable.find((c) => c.chosen) || usable[0];
   const select = $("#method");
   select.replaceChildren(...usable.map((c) => el("option", { value: c.method, selected: c === chosen }, c.method + (c.chosen ? " (chosen)" : ""))));
-  select.onchange = () => showMethod(runId, points.data, select.value);
+  select.onchange = () => showMethod(runId, points.data, select.value, status.sensor);
   if (calibrations.data.length) metricsTable(calibrations.data);
-  await showMethod(runId, points.data, chosen?.method);
+  await showMethod(runId, points.data, chosen?.method, status.sensor);
 }
 
 async function init() {

@@ -6,6 +6,7 @@ const spots = { x: [], y: [], zenith: [], text: [] };
 let runId = null;
 let source = null;
 let drawPending = false;
+let detector = null; // the detector's size (width_px, height_px), from the status
 
 function draw() {
   if (drawPending) return;
@@ -17,7 +18,10 @@ function draw() {
       mode: "markers", name: "spots", x: spots.x, y: spots.y, text: spots.text,
       marker: { size: 5, color: spots.zenith, colorscale: "Viridis", colorbar: { title: { text: "zenith stage [°]" } } },
       hovertemplate: "(%{x:.2f}, %{y:.2f}) px<br>%{text}<extra></extra>",
-    }], { ...matrixLayout(runId ? `run ${runId}` : "spots"), showlegend: false }, PLOT_CONFIG);
+    }], {
+      ...matrixLayout(runId ? `run ${runId}` : "spots", detector), showlegend: false,
+      datarevision: `${runId}:${spots.x.length}`, // the arrays grow in place: react redraws only on a new revision
+    }, PLOT_CONFIG);
   });
 }
 
@@ -39,9 +43,9 @@ function progress(index, total, eta_s) {
   $("#eta").textContent = duration(eta_s);
 }
 
-function log(kind, text) {
+function log(kind, text, when = new Date()) {
   const list = $("#log");
-  const time = new Date().toLocaleTimeString();
+  const time = when.toLocaleTimeString();
   list.prepend(el("li", { class: kind }, `${time} ${kind}: ${text}`));
   while (list.children.length > 300) list.lastChild.remove();
 }
@@ -61,15 +65,18 @@ async function catchUp() {
   let status;
   try { status = await api("/api/status"); } catch (err) { report(err); return; }
   const e = status.engine;
+  if (status.sensor?.width_px && !detector) { detector = status.sensor; draw(); }
   $("#engine-state").textContent = e.state;
   progress(e.index, e.total, e.eta_s);
   if (e.run_id && e.run_id !== runId) {
     setRun(e.run_id, e.sensor_id);
     resetSpots();
     try {
-      const points = await api(`/api/runs/${e.run_id}/points`);
+      const [points, runLog] = await Promise.all([api(`/api/runs/${e.run_id}/points`), api(`/api/runs/${e.run_id}/log`)]);
       for (const p of points.data) addSpot(p.x_px, p.y_px, p.zenith_stage_deg, p.key);
       draw();
+      $("#log").replaceChildren();
+      for (const entry of runLog.data) log(entry.kind, entry.message, new Date(entry.t_utc));
     } catch (err) { report(err); }
     if (e.state === "idle") finishedLink(e.run_id);
   }

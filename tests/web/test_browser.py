@@ -1,0 +1,318 @@
+"""The dashboard in a real browser: Playwright drives Debian's headless chromium against `sunbench serve` on
+the simulated bench, as an engineer would use it (the token pasted into the form, campaigns started from
+the launcher, followed live, read on the results page).
+
+chromium comes from scripts/setup-browser.sh (``apt-get install chromium``; ``SUNBENCH_CHROMIUM`` names
+another binary). Playwright never downloads a browser here. Screenshots of every step are saved in
+``test-artifacts/browser/`` (``SUNBENCH_ARTIFACTS`` moves the folder).
+"""
+
+import os
+import re
+import socket
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import pytest
+from playwright.sync_api import Page, expect, sync_playwright
+
+ROOT = Path(__file__).resolve().parents[2]
+ARTIFACTS = Path(os.environ.get("SUNBENCH_ARTIFACTS", ROOT / "test-artifacts")) / "browser"
+CHROMIUM = os.environ.get("SUNBENCH_CHROMIUM", "/usr/bin/chromium")
+# as root in a container chromium needs --no-sandbox; without the networking flags it keeps trying to
+# reach Google's hosts, which this machine's closed network refuses
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+# simulated time runs 100× faster: the launcher's default campaign (about 17 min on the bench) lasts ~10 s,
+# long enough to watch it, pause it and abort it
+TIME_SCALE = 100
+TIMEOUT_MS = 60_000
+expect.set_options(timeout=20_000)  # a busy CI machine; a passing expect returns as soon as it holds
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    """`sunbench serve` on the simulated bench, on a free port; yields (base URL, token)."""
+    home = tmp_path_factory.mktemp("serve")
+    port = _free_port()
+    env = {**os.environ, "XDG_CONFIG_HOME": str(home / "cfg"), "HOME": str(home)}
+    exe = Path(sys.executable).parent / "sunbench"
+    log = open(home / "serve.log", "w")
+    proc = subprocess.Popen([str(exe), "serve", "--catalogue", str(home / "bench.sqlite"), "--port", str(port),
+                             "--time-scale", str(TIME_SCALE)], stdout=log, stderr=subprocess.STDOUT, env=env)
+    base = f"http://127.0.0.1:{port}"
+    deadline = time.monotonic() + 30
+    try:
+        while True:
+            assert proc.poll() is None, (home / "serve.log").read_text()
+            assert time.monotonic() < deadline, "sunbench serve did not come up"
+            try:
+                urllib.request.urlopen(base + "/openapi.json", timeout=1)
+                break
+            except (urllib.error.URLError, ConnectionError):
+                time.sleep(0.2)
+        yield base, (home / "cfg" / "sunbench" / "token").read_text().strip()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=20)
+        log.close()
+    assert "Traceback" not in (home / "serve.log").read_text()
+
+
+@pytest.fixture(scope="module")
+def browser():
+    if not os.access(CHROMIUM, os.X_OK):
+        pytest.fail(f"no chromium at {CHROMIUM}: run scripts/setup-browser.sh (or bash scripts/test.sh, which "
+                    "runs it), or set SUNBENCH_CHROMIUM")
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield browser
+        browser.close()
+
+
+class Shots:
+    """Numbered screenshots of one test, in ARTIFACTS."""
+
+    def __init__(self, page: Page, test_name: str):
+        self.page, self.prefix, self.n = page, re.sub(r"\W+", "-", test_name).strip("-"), 0
+        ARTIFACTS.mkdir(parents=True, exist_ok=True)
+        for old in ARTIFACTS.glob(f"{self.prefix}-*.png"):
+            old.unlink()
+
+    def __call__(self, name: str) -> Path:
+        self.n += 1
+        path = ARTIFACTS / f"{self.prefix}-{self.n:02d}-{name}.png"
+        self.page.screenshot(path=path, full_page=True)
+        return path
+
+
+@pytest.fixture
+def page(browser, server, request):
+    """A fresh browser profile (no token yet) on the bench's idle dashboard. Any uncaught script error
+    fails the test; a last screenshot is taken whatever happened."""
+    base, _ = server
+    _wait_idle(server)
+    context = browser.new_context(base_url=base, viewport={"width": 1280, "height": 900})
+    context.set_default_timeout(TIMEOUT_MS)
+    page = context.new_page()
+    errors = []
+    page.on("pageerror", lambda exc: errors.append(f"uncaught: {exc}"))
+    # a 404 for a frame before the shutter has opened is the API's answer, not a page error
+    page.on("console", lambda m: m.type == "error" and "Failed to load resource" not in m.text
+            and errors.append(f"console: {m.text}"))
+    page.shots = Shots(page, request.node.name)
+    yield page
+    page.shots("last")
+    context.close()
+    assert not errors, errors
+
+
+def _wait_idle(server, timeout_s=60.0):
+    base, token = server
+    request = urllib.request.Request(base + "/api/status", headers={"Authorization": f"Bearer {token}"})
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        status = urllib.request.urlopen(request, timeout=5).read().decode()
+        if '"state":"idle"' in status:
+            return
+        time.sleep(0.2)
+    raise AssertionError("the bench did not come back to idle")
+
+
+def paste_token(page: Page, token: str) -> None:
+    """What an engineer does first: open the token box and paste the token `sunbench serve` printed."""
+    box = page.locator("#token-box")
+    if box.get_attribute("open") is None:
+        page.click("#token-box summary")
+    page.fill("#token-form input[name=token]", token)
+    page.click("#token-form button[type=submit]")
+    expect(page.locator("#token-state")).to_have_text("token set")
+
+
+def plot_points(page: Page, plot_id: str) -> int:
+    """How many markers plotly drew in the plot `plot_id`."""
+    return page.locator(f"#{plot_id} .scatterlayer .point").count()
+
+
+# -- the whole way: launcher → live run → results → fleet ---------------------------------------------------
+def test_a_campaign_from_the_launcher_to_its_results(page, server):
+    _, token = server
+    page.goto("/launch")
+    expect(page.locator("#token-state")).to_have_text("no token")
+    paste_token(page, token)
+
+    page.click("#dry-run")
+    expect(page.locator("#message")).to_have_text("dry run ok: nothing moved")
+    expect(page.locator("#d-nviol")).to_have_text("none")
+    points = int(page.locator("#d-points").inner_text())
+    assert points == 80  # seed 003: 8 azimuths × 7 zenith stages + centre and tilt points
+    assert re.fullmatch(r"\d+ min \d+ s", page.locator("#d-duration").inner_text())
+    page.shots("dry-run")
+
+    page.click("#start")
+    expect(page.locator("#started")).to_contain_text("queued")
+    page.shots("queued")
+    page.click("#started a[href='/run']")
+    expect(page).to_have_url(re.compile(r"/run$"))
+    expect(page.locator("#stream-state")).to_have_text("connected")
+
+    # progress while it runs: the bar moves and spots arrive on the matrix before the end
+    seen_between = False
+    deadline = time.monotonic() + TIMEOUT_MS / 1000
+    while time.monotonic() < deadline:
+        value, maximum = page.eval_on_selector("#progress", "p => [p.value, p.max]")
+        if 0 < value < maximum and maximum == points:
+            if not seen_between:
+                page.shots("running")
+            seen_between = True
+            assert plot_points(page, "spot-plot") > 0
+        if page.locator("#result-link a").count():
+            break
+        time.sleep(0.1)
+    assert seen_between, "the live run page never showed the run in progress"
+    expect(page.locator("#progress-text")).to_have_text(f"{points} / {points}")
+    assert page.eval_on_selector("#progress", "p => p.value / p.max") == 1.0
+    expect(page.locator("#log")).to_contain_text("finished: completed")
+    assert plot_points(page, "spot-plot") >= points  # every frame's spot, as it arrived
+    page.shots("finished")
+
+    page.click("#result-link a")
+    expect(page).to_have_url(re.compile(r"/results\?run=\d+$"))
+    rows = page.locator("#metrics tbody tr")
+    expect(rows).to_have_count(4)  # seed003, -tilt, -sector, physical side by side
+    expect(page.locator("#metrics tbody tr.chosen")).to_have_count(1)
+    chosen = page.locator("#metrics tbody tr.chosen td").first.inner_text()
+    assert chosen.startswith("physical")  # the physical model predicts held-out directions best
+    held_out_rms = float(page.locator("#metrics tbody tr.chosen td").nth(4).inner_text())
+    assert 0 < held_out_rms < 0.05  # degrees, on the default simulated sensor
+    for plot in ("spot-plot", "radius-plot", "zenith-residual-plot", "azimuth-plot", "error-plot"):
+        expect(page.locator(f"#{plot} .main-svg").first).to_be_visible()
+        assert plot_points(page, plot) > 10, plot
+    # fig. 4.7 draws one line per bench azimuth
+    assert page.locator("#zenith-residual-plot .scatterlayer .trace").count() == 8
+    page.shots("results")
+
+    with page.expect_download() as download:
+        page.click("#downloads button:has-text('bench data CSV')")
+    csv_text = Path(download.value.path()).read_text()
+    assert csv_text.splitlines()[0].startswith("#") or "," in csv_text.splitlines()[0]
+    assert len(csv_text.splitlines()) > points
+
+    page.select_option("#method", "seed003")
+    expect(page.locator("#radius-plot .gtitle")).to_contain_text("seed003")
+    page.shots("results-seed003")
+
+    page.click("nav a[href='/fleet']")
+    page.click("#campaigns-table a")
+    expect(page.locator("#fleet-heading")).to_contain_text("1 / 1 sensors done")
+    expect(page.locator("#fleet tbody tr")).to_have_count(1)
+    expect(page.locator("#fleet tbody tr td").nth(5)).to_have_text("physical")
+    page.shots("fleet")
+
+
+# -- the bench page -----------------------------------------------------------------------------------------
+def test_the_bench_page_lights_the_lamp_opens_the_shutter_and_jogs(page, server):
+    _, token = server
+    page.goto("/")
+    paste_token(page, token)
+    expect(page.locator("#s-engine")).to_have_text(re.compile(r"^idle"))
+
+    page.click("#lamp-on")
+    expect(page.locator("#s-lamp")).to_contain_text("on")
+    page.click("#shutter-open")
+    expect(page.locator("#s-shutter")).to_have_text("open")
+    page.fill("#jog-step", "10")
+    page.click("[data-jog='zen:1']")
+    expect(page.locator("#s-zen")).to_have_text(re.compile(r"^\d+\.000°$"))
+    zenith = float(page.locator("#s-zen").inner_text().rstrip("°"))
+    page.click("[data-jog='zen:1']")
+    expect(page.locator("#s-zen")).to_have_text(f"{zenith + 10:.3f}°")
+    # the frame with its spot marked (refreshed every 2 s)
+    expect(page.locator("#spot-text")).to_contain_text("spot at (", timeout=15_000)
+    page.shots("lamp-on-shutter-open")
+
+    # beyond the soft limits: refused before anything moves
+    page.fill("#jog-form input[name=zenith_deg]", "95")
+    page.click("#jog-form button[type=submit]")
+    expect(page.locator("#message")).to_contain_text("Refused: 422")
+    expect(page.locator("#s-zen")).to_have_text(f"{zenith + 10:.3f}°")
+    page.shots("refused-jog")
+
+    page.click("#shutter-close")
+    expect(page.locator("#s-shutter")).to_have_text("closed")
+    page.click("#shutter-open")
+    expect(page.locator("#s-shutter")).to_have_text("open")
+    page.click("#lamp-off")  # standby: the shutter closes; the simulated bench's arc lamp keeps burning
+    expect(page.locator("#message")).to_have_text("lamp to standby")
+    expect(page.locator("#s-shutter")).to_have_text("closed")
+    expect(page.locator("#s-lamp")).to_have_text("on")
+    page.fill("#jog-form input[name=zenith_deg]", "0")
+    page.fill("#jog-form input[name=azimuth_deg]", "0")
+    page.click("#jog-form button[type=submit]")
+    expect(page.locator("#s-zen")).to_have_text("0.000°")
+
+
+# -- refusals -----------------------------------------------------------------------------------------------
+def test_without_the_token_the_launcher_asks_for_it_and_refuses_bad_campaigns(page, server):
+    _, token = server
+    page.goto("/launch")
+    page.click("#dry-run")
+    expect(page.locator("#message")).to_contain_text("401")
+    expect(page.locator("#token-box")).to_have_attribute("open", "")
+    page.shots("no-token")
+
+    paste_token(page, token)
+    page.fill("#campaign-form input[name=zenith_stage_deg]", "0, 10, 20, 30, 40, 50, 95")
+    page.click("#dry-run")
+    expect(page.locator("#message")).to_have_text("the campaign would be refused")
+    violations = page.locator("#violations li")
+    assert violations.count() >= 1 and "95" in violations.first.inner_text()
+    page.click("#start")
+    expect(page.locator("#message")).to_have_text("preflight refused the campaign: see the violations")
+    page.fill("#campaign-form input[name=zenith_stage_deg]", "0, 10, 20")
+    page.click("#dry-run")
+    expect(page.locator("#message")).to_have_text("invalid campaign: seed003.zenith_stage_deg: Value error, "
+                                                  "a 6th-order θ(r) needs at least 7 zenith angles")
+    page.shots("refused")
+    expect(page.locator("#started")).to_have_text("")  # nothing was queued
+
+
+# -- run control --------------------------------------------------------------------------------------------
+def test_pause_resume_and_abort_from_the_live_run_page(page, server):
+    _, token = server
+    page.goto("/launch")
+    paste_token(page, token)
+    page.click("#start")
+    expect(page.locator("#started")).to_contain_text("queued")
+    page.goto("/run")
+    expect(page.locator("#stream-state")).to_have_text("connected")
+    expect(page.locator("#engine-state")).to_have_text("running")
+
+    page.click("#pause")
+    expect(page.locator("#engine-state")).to_have_text("paused")
+    index = page.eval_on_selector("#progress", "p => p.value")
+    time.sleep(1.0)  # 100 s of bench time: a running campaign would have recorded points meanwhile
+    assert page.eval_on_selector("#progress", "p => p.value") == index
+    page.shots("paused")
+
+    page.click("#resume")
+    expect(page.locator("#engine-state")).to_have_text("running")
+    page.wait_for_function(f"document.querySelector('#progress').value > {index}")
+
+    page.once("dialog", lambda dialog: dialog.accept())  # "Abort the run? Its recorded points stay."
+    page.click("#abort")
+    expect(page.locator("#log")).to_contain_text("finished: aborted")
+    expect(page.locator("#engine-state")).to_have_text("idle")
+    page.shots("aborted")
+    page.click("#result-link a")
+    expect(page.locator("#run-info")).to_contain_text("aborted")
