@@ -7,6 +7,7 @@ another binary). Playwright never downloads a browser here. Screenshots of every
 ``test-artifacts/browser/`` (``SUNBENCH_ARTIFACTS`` moves the folder).
 """
 
+import contextlib
 import os
 import re
 import socket
@@ -40,33 +41,39 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
+@contextlib.contextmanager
+def _serving(home: Path, *options: str):
     """`sunbench serve` on the simulated bench, on a free port; yields (base URL, token)."""
-    home = tmp_path_factory.mktemp("serve")
     port = _free_port()
     env = {**os.environ, "XDG_CONFIG_HOME": str(home / "cfg"), "HOME": str(home)}
     exe = Path(sys.executable).parent / "sunbench"
-    log = open(home / "serve.log", "w")
-    proc = subprocess.Popen([str(exe), "serve", "--catalogue", str(home / "bench.sqlite"), "--port", str(port),
-                             "--time-scale", str(TIME_SCALE)], stdout=log, stderr=subprocess.STDOUT, env=env)
-    base = f"http://127.0.0.1:{port}"
-    deadline = time.monotonic() + 30
-    try:
-        while True:
-            assert proc.poll() is None, (home / "serve.log").read_text()
-            assert time.monotonic() < deadline, "sunbench serve did not come up"
-            try:
-                urllib.request.urlopen(base + "/openapi.json", timeout=1)
-                break
-            except (urllib.error.URLError, ConnectionError):
-                time.sleep(0.2)
-        yield base, (home / "cfg" / "sunbench" / "token").read_text().strip()
-    finally:
-        proc.terminate()
-        proc.wait(timeout=20)
-        log.close()
-    assert "Traceback" not in (home / "serve.log").read_text()
+    log_path = home / "serve.log"
+    with open(log_path, "w") as log:
+        proc = subprocess.Popen([str(exe), "serve", "--catalogue", str(home / "bench.sqlite"), "--port", str(port),
+                                 "--time-scale", str(TIME_SCALE), *options], stdout=log, stderr=subprocess.STDOUT,
+                                env=env)
+        base = f"http://127.0.0.1:{port}"
+        deadline = time.monotonic() + 30
+        try:
+            while True:
+                assert proc.poll() is None, log_path.read_text()
+                assert time.monotonic() < deadline, "sunbench serve did not come up"
+                try:
+                    urllib.request.urlopen(base + "/openapi.json", timeout=1)
+                    break
+                except (urllib.error.URLError, ConnectionError):
+                    time.sleep(0.2)
+            yield base, (home / "cfg" / "sunbench" / "token").read_text().strip()
+        finally:
+            proc.terminate()
+            proc.wait(timeout=20)
+    assert "Traceback" not in log_path.read_text()
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    with _serving(tmp_path_factory.mktemp("serve")) as served:
+        yield served
 
 
 @pytest.fixture(scope="module")
@@ -316,3 +323,32 @@ def test_pause_resume_and_abort_from_the_live_run_page(page, server):
     page.shots("aborted")
     page.click("#result-link a")
     expect(page.locator("#run-info")).to_contain_text("aborted")
+
+
+# -- read-only views without the token ----------------------------------------------------------------------
+def test_with_public_read_the_pages_show_without_the_token_and_commands_still_ask_for_it(browser, tmp_path):
+    with _serving(tmp_path, "--public-read") as (base, token):
+        context = browser.new_context(base_url=base, viewport={"width": 1280, "height": 900})
+        page = context.new_page()
+        shots = Shots(page, "public-read")
+        try:
+            page.goto("/")
+            expect(page.locator("#token-state")).to_have_text("no token")
+            expect(page.locator("#s-engine")).to_have_text(re.compile(r"^idle"))  # the status, read freely
+            expect(page.locator("#s-az")).to_have_text(re.compile(r"^-?\d+\.\d{3}°$"))
+            page.click("#lamp-on")
+            expect(page.locator("#message")).to_contain_text("Refused: 401")
+            expect(page.locator("#s-lamp")).to_have_text("off")  # nothing was lit
+            shots("bench-refused")
+
+            page.goto("/run")
+            expect(page.locator("#stream-state")).to_have_text("connected")  # events without the token
+            page.goto("/launch")
+            page.click("#dry-run")
+            expect(page.locator("#d-nviol")).to_have_text("none")  # a dry run reads, it moves nothing
+            page.click("#start")
+            expect(page.locator("#message")).to_contain_text("Refused: 401")
+            expect(page.locator("#started")).to_have_text("")
+            shots("launch-refused")
+        finally:
+            context.close()
