@@ -7,21 +7,17 @@ another binary). Playwright never downloads a browser here. Screenshots of every
 ``test-artifacts/browser/`` (``SUNBENCH_ARTIFACTS`` moves the folder).
 """
 
-import contextlib
 import os
 import re
-import socket
-import subprocess
-import sys
 import time
-import urllib.error
 import urllib.request
 from pathlib import Path
 
 import pytest
 from playwright.sync_api import Page, expect, sync_playwright
 
-ROOT = Path(__file__).resolve().parents[2]
+from serving import ROOT, serving
+
 ARTIFACTS = Path(os.environ.get("SUNBENCH_ARTIFACTS", ROOT / "test-artifacts")) / "browser"
 CHROMIUM = os.environ.get("SUNBENCH_CHROMIUM", "/usr/bin/chromium")
 # as root in a container chromium needs --no-sandbox; without the networking flags it keeps trying to
@@ -35,45 +31,11 @@ TIMEOUT_MS = 60_000
 expect.set_options(timeout=20_000)  # a busy CI machine; a passing expect returns as soon as it holds
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-@contextlib.contextmanager
-def _serving(home: Path, *options: str):
-    """`sunbench serve` on the simulated bench, on a free port; yields (base URL, token)."""
-    port = _free_port()
-    env = {**os.environ, "XDG_CONFIG_HOME": str(home / "cfg"), "HOME": str(home)}
-    exe = Path(sys.executable).parent / "sunbench"
-    log_path = home / "serve.log"
-    with open(log_path, "w") as log:
-        proc = subprocess.Popen([str(exe), "serve", "--catalogue", str(home / "bench.sqlite"), "--port", str(port),
-                                 "--time-scale", str(TIME_SCALE), *options], stdout=log, stderr=subprocess.STDOUT,
-                                env=env)
-        base = f"http://127.0.0.1:{port}"
-        deadline = time.monotonic() + 30
-        try:
-            while True:
-                assert proc.poll() is None, log_path.read_text()
-                assert time.monotonic() < deadline, "sunbench serve did not come up"
-                try:
-                    urllib.request.urlopen(base + "/openapi.json", timeout=1)
-                    break
-                except (urllib.error.URLError, ConnectionError):
-                    time.sleep(0.2)
-            yield base, (home / "cfg" / "sunbench" / "token").read_text().strip()
-        finally:
-            proc.terminate()
-            proc.wait(timeout=20)
-    assert "Traceback" not in log_path.read_text()
-
-
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    with _serving(tmp_path_factory.mktemp("serve")) as served:
-        yield served
+    """`sunbench serve` on the simulated bench; (base URL, token)."""
+    with serving(tmp_path_factory.mktemp("serve"), None, "--time-scale", str(TIME_SCALE)) as served:
+        yield served.base, served.token
 
 
 @pytest.fixture(scope="module")
@@ -327,7 +289,8 @@ def test_pause_resume_and_abort_from_the_live_run_page(page, server):
 
 # -- read-only views without the token ----------------------------------------------------------------------
 def test_with_public_read_the_pages_show_without_the_token_and_commands_still_ask_for_it(browser, tmp_path):
-    with _serving(tmp_path, "--public-read") as (base, token):
+    with serving(tmp_path, None, "--time-scale", str(TIME_SCALE), "--public-read") as served:
+        base = served.base
         context = browser.new_context(base_url=base, viewport={"width": 1280, "height": 900})
         page = context.new_page()
         shots = Shots(page, "public-read")
