@@ -6,15 +6,19 @@ and an event bus.
 * The status (table angles, lamp and shutter, the sensor's temperature and latest frame, the engine's state
   and progress) is a cache: a status thread refreshes it from the devices while the bench is idle, and the
   engine's events refresh it during a run, so a request never waits on a serial port.
-* Events go to every subscriber through its own bounded queue: a slow client loses old events, it never
-  slows a measurement (research note anchors-orchestration, lesson 10).
+* Events go to every subscriber through its own bounded buffer: a slow client loses old events, it never
+  slows a measurement (research note anchors-orchestration, lesson 10). The publisher hands each event once to
+  each event loop with subscribers, however many streams that loop serves; the loop fans it out.
 """
 
 from __future__ import annotations
 
+import asyncio
 import queue
 import threading
 import time
+from collections import deque
+from collections.abc import Callable
 from dataclasses import asdict
 
 import numpy as np
@@ -30,47 +34,171 @@ class BenchBusy(IllegalTransition):
     """A manual command (jog, lamp, shutter) while a run owns the bench."""
 
 
+class AsyncSubscription:
+    """One asyncio reader's subscription to an :class:`EventBus` (see :meth:`EventBus.subscribe_async`): a
+    bounded buffer filled in the reader's own event loop, the oldest item dropped when it is full.
+
+    Everything but :meth:`close` runs in that loop's thread, so the buffer needs no lock.
+    """
+
+    def __init__(self, loop: asyncio.AbstractEventLoop, encode: Callable[[dict], object] | None, maxsize: int):
+        self.loop = loop
+        self.encode = encode
+        self.closed = False
+        self._items: deque = deque(maxlen=maxsize)
+        self._waiter: asyncio.Future | None = None
+        self._idle_timer: asyncio.TimerHandle | None = None
+        self._quiet = True  # nothing delivered since the idle timer was armed
+
+    def _deliver(self, item) -> bool:
+        """Buffer `item` and wake the reader; True when the oldest buffered item was dropped for it."""
+        full = len(self._items) == self._items.maxlen
+        self._items.append(item)
+        self._quiet = False
+        self._wake()
+        return full
+
+    def _wake(self) -> None:
+        if self._waiter is not None and not self._waiter.done():
+            self._waiter.set_result(None)
+
+    def _idle_check(self, idle_s: float) -> None:
+        # one timer per idle period, not one per wait (50 streams arming and cancelling a timer on every
+        # event cost the loop some 15 % more): while items flow, the timer only re-arms itself
+        if self._quiet:
+            self._idle_timer = None
+            self._wake()
+        else:
+            self._quiet = True
+            self._idle_timer = self.loop.call_later(idle_s, self._idle_check, idle_s)
+
+    async def next_batch(self, idle_s: float) -> list:
+        """Every buffered item, oldest first, waiting for the first one. Empty when the subscription was
+        closed, or when nothing arrived for `idle_s` [s] (between one and two `idle_s` after the last item)."""
+        if not self._items and not self.closed:
+            if self._idle_timer is None:
+                self._quiet = True
+                self._idle_timer = self.loop.call_later(idle_s, self._idle_check, idle_s)
+            # a bare future: no task and no cancel scope per wait, and an idle reader costs nothing
+            self._waiter = self.loop.create_future()
+            try:
+                await self._waiter
+            finally:
+                self._waiter = None
+        batch = list(self._items)
+        self._items.clear()
+        return batch
+
+    def close(self) -> None:
+        """Mark the subscription closed and end the reader's wait; callable from any thread."""
+        self.closed = True
+        try:
+            self.loop.call_soon_threadsafe(self._end)
+        except RuntimeError:  # the loop has closed: nobody is waiting
+            pass
+
+    def _end(self) -> None:
+        if self._idle_timer is not None:
+            self._idle_timer.cancel()
+            self._idle_timer = None
+        self._wake()
+
+
 class EventBus:
-    """Fan-out of events to subscribers, each with a bounded queue (the oldest event is dropped when full)."""
+    """Fan-out of events to subscribers, each with a bounded buffer (the oldest event is dropped when full).
+
+    A thread subscribes with :meth:`subscribe` and reads a :class:`queue.Queue`; an asyncio task (an event
+    stream of the web API) subscribes with :meth:`subscribe_async`. :meth:`publish` runs in the publisher's
+    thread, often the engine's in the middle of a measurement, so it pays one put per queue but one hand-off
+    per event loop, however many tasks of that loop subscribe: the loop fans the event out itself.
+    """
 
     def __init__(self, maxsize: int = 256):
         self.maxsize = maxsize
-        self._queues: list[queue.Queue] = []
         self._lock = threading.Lock()
+        # replaced, never mutated, under the lock: publish takes a consistent snapshot without copying
+        self._queues: tuple[queue.Queue, ...] = ()
+        self._groups: dict[tuple, tuple[AsyncSubscription, ...]] = {}  # by (loop, encode)
         self.dropped = 0
 
     def subscribe(self) -> queue.Queue:
+        """A queue of the events published from now on, for a thread to read."""
         q: queue.Queue = queue.Queue(self.maxsize)
         with self._lock:
-            self._queues.append(q)
+            self._queues += (q,)
         return q
 
     def unsubscribe(self, q: queue.Queue) -> None:
         with self._lock:
-            if q in self._queues:
-                self._queues.remove(q)
+            self._queues = tuple(x for x in self._queues if x is not q)
+
+    def subscribe_async(self, encode: Callable[[dict], object] | None = None) -> AsyncSubscription:
+        """A subscription read in the running event loop (call it from that loop).
+
+        Parameters
+        ----------
+        encode : callable, optional
+            What the subscription buffers for each event, instead of the event itself (an event stream's wire
+            bytes). Called in the loop, once per event for all of the loop's subscriptions with the same
+            `encode`, never in the publisher's thread.
+        """
+        subscription = AsyncSubscription(asyncio.get_running_loop(), encode, self.maxsize)
+        key = (subscription.loop, encode)
+        with self._lock:
+            self._groups = {**self._groups, key: self._groups.get(key, ()) + (subscription,)}
+        return subscription
+
+    def unsubscribe_async(self, subscription: AsyncSubscription) -> None:
+        """Stop delivering to `subscription`, and close it."""
+        key = (subscription.loop, subscription.encode)
+        with self._lock:
+            groups = dict(self._groups)
+            rest = tuple(s for s in groups.pop(key, ()) if s is not subscription)
+            if rest:
+                groups[key] = rest
+            self._groups = groups
+        subscription.close()
 
     def publish(self, event: dict) -> None:
+        """Deliver `event` to every subscriber; never waits for one."""
         with self._lock:
-            queues = list(self._queues)
+            queues, groups = self._queues, self._groups
         for q in queues:
             try:
                 q.put_nowait(event)
-            except queue.Full:  # a slow client: drop its oldest event, never wait
+            except queue.Full:  # a slow reader: drop its oldest event, never wait
                 try:
                     q.get_nowait()
-                    self.dropped += 1
+                    self._count_dropped(1)
                 except queue.Empty:
                     pass
                 try:
                     q.put_nowait(event)
                 except queue.Full:
-                    self.dropped += 1
+                    self._count_dropped(1)
+        for (loop, encode), subscriptions in groups.items():
+            try:
+                loop.call_soon_threadsafe(self._fan_out, subscriptions, encode, event)
+            except RuntimeError:  # the loop has closed without unsubscribing: forget its subscriptions
+                with self._lock:
+                    self._groups = {k: v for k, v in self._groups.items() if k[0] is not loop}
+
+    def _fan_out(self, subscriptions: tuple[AsyncSubscription, ...], encode, event: dict) -> None:
+        # in the subscriptions' loop, to those subscribed when `event` was published
+        item = event if encode is None else encode(event)
+        dropped = sum(s._deliver(item) for s in subscriptions)
+        if dropped:
+            self._count_dropped(dropped)
+
+    def _count_dropped(self, n: int) -> None:
+        with self._lock:  # publishers' threads and event loops all count here
+            self.dropped += n
 
     @property
     def subscribers(self) -> int:
+        """Queues and asynchronous subscriptions."""
         with self._lock:
-            return len(self._queues)
+            return len(self._queues) + sum(len(group) for group in self._groups.values())
 
 
 class BenchService:
@@ -101,6 +229,7 @@ class BenchService:
         self._status: dict = {"engine": {"state": EngineState.IDLE.value}, "updated_utc": None}
         self._frame: np.ndarray | None = None
         self._frame_spot: dict | None = None
+        self._frame_size: dict | None = None  # width_px, height_px of the sensor's frames
         self._progress: dict = {}
         self._threads = [threading.Thread(target=self._worker, name="bench-worker", daemon=True),
                          threading.Thread(target=self._poller, name="bench-status", daemon=True)]
@@ -233,8 +362,12 @@ class BenchService:
             azimuth, zenith = d.table.position()
             source = d.source.status()
             sensor = {"temperature_c": d.sensor.temperature_c(), "exposure_ms": d.sensor.exposure_ms()}
-            if source.shutter_open:
-                self._frame = d.sensor.capture()
+            if source.shutter_open or self._frame_size is None:  # one dark frame tells the detector's size
+                frame = d.sensor.capture()
+                self._frame_size = {"width_px": int(frame.shape[1]), "height_px": int(frame.shape[0])}
+                if source.shutter_open:
+                    self._frame = frame
+            sensor.update(self._frame_size)
             table = {"azimuth_deg": azimuth, "zenith_deg": zenith, "moving": d.table.is_moving()}
         except Exception as exc:  # noqa: BLE001 - a device error shows in the status, it does not end the service
             self._status["error"] = str(exc)

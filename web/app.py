@@ -8,7 +8,6 @@ catalogue id is 404.
 
 from __future__ import annotations
 
-import threading
 from contextlib import asynccontextmanager
 
 from fastapi import FastAPI, Request
@@ -21,6 +20,7 @@ from bench.runner import PreflightRefused
 from drivers.errors import LimitError
 
 from .routes import campaigns, commands, downloads, events, fits, pages, run, runs, status
+from .server import Shutdown
 from .settings import WebSettings
 
 TAGS = [
@@ -75,12 +75,12 @@ def create_app(service, *, settings: WebSettings) -> FastAPI:
     -------
     fastapi.FastAPI
     """
-    shutdown = threading.Event()
+    shutdown = Shutdown()
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):
         yield
-        shutdown.set()  # ends the event streams, so the server does not wait on them to stop
+        shutdown.set()  # closes the event streams, so the server does not wait on them to stop
 
     app = FastAPI(title="sunbench", summary="Sun-sensor calibration bench", version="1",
                   openapi_tags=TAGS, generate_unique_id_function=_operation_id, lifespan=lifespan)

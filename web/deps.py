@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import queue
+from collections.abc import Callable
 from typing import Annotated
 
 from fastapi import Depends, Request
@@ -14,38 +14,47 @@ from .security import require_read, require_token
 from .settings import WebSettings
 
 
-def get_service(request: Request) -> BenchService:
+# async although they never wait: FastAPI runs a plain `def` dependency in its thread pool, and that hop on
+# every request costs the event loop more than the lookup, and the engine's thread a GIL hand-off
+async def get_service(request: Request) -> BenchService:
     return request.app.state.service
 
 
-def get_catalogue(request: Request) -> Catalogue:
+async def get_catalogue(request: Request) -> Catalogue:
     # the service's own catalogue: its read API is thread-safe, and a second writer would be refused
     return request.app.state.service.catalogue
 
 
-def get_settings(request: Request) -> WebSettings:
+async def get_settings(request: Request) -> WebSettings:
     return request.app.state.settings
 
 
-async def subscribe_events(request: Request):
-    """A bounded queue of the bus's events for one client, dropped when its response ends.
+def subscribe_events(encode: Callable[[dict], object] | None = None):
+    """A dependency giving each request its own bounded buffer of the bus's events, dropped when its response
+    ends and closed at shutdown. `encode` is what the buffer holds per event (see
+    :meth:`bench.service.EventBus.subscribe_async`: it runs once per event for all clients).
 
-    Subscribing here (before the response starts) rather than in the stream means no event published
-    after the request was answered can be missed. Async, so the cleanup runs even when a disconnect
-    cancels the request.
+    Subscribing in a dependency (before the response starts) rather than in the stream means no event
+    published after the request was answered can be missed. Async, so the subscription belongs to the
+    server's event loop and its cleanup runs even when a disconnect cancels the request.
     """
-    bus = request.app.state.service.bus
-    q = bus.subscribe()
-    try:
-        yield q
-    finally:
-        bus.unsubscribe(q)
+    async def subscription(request: Request):
+        bus = request.app.state.service.bus
+        shutdown = request.app.state.shutdown
+        events = bus.subscribe_async(encode)
+        shutdown.add_callback(events.close)
+        try:
+            yield events
+        finally:
+            shutdown.remove_callback(events.close)
+            bus.unsubscribe_async(events)
+
+    return subscription
 
 
 ServiceDep = Annotated[BenchService, Depends(get_service)]
 CatalogueDep = Annotated[Catalogue, Depends(get_catalogue)]
 SettingsDep = Annotated[WebSettings, Depends(get_settings)]
-EventQueueDep = Annotated[queue.Queue, Depends(subscribe_events)]
 
 #: router-level guards
 TOKEN = [Depends(require_token)]

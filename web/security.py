@@ -64,7 +64,9 @@ _bearer = HTTPBearer(auto_error=False, description="The token from ~/.config/sun
 _CredentialsDep = Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)]
 
 
-def _settings(request: Request) -> WebSettings:
+# async although they never wait: FastAPI runs a plain `def` dependency in its thread pool, a hop per
+# request that costs more than the check (see web/deps.py)
+async def _settings(request: Request) -> WebSettings:
     return request.app.state.settings
 
 
@@ -80,18 +82,18 @@ def _check(credentials: HTTPAuthorizationCredentials | None, settings: WebSettin
                             headers={"WWW-Authenticate": "Bearer"})
 
 
-def require_token(credentials: _CredentialsDep, settings: Annotated[WebSettings, Depends(_settings)]) -> None:
+async def require_token(credentials: _CredentialsDep, settings: Annotated[WebSettings, Depends(_settings)]) -> None:
     """Commands: always need the token."""
     _check(credentials, settings)
 
 
-def require_read(credentials: _CredentialsDep, settings: Annotated[WebSettings, Depends(_settings)]) -> None:
+async def require_read(credentials: _CredentialsDep, settings: Annotated[WebSettings, Depends(_settings)]) -> None:
     """Reads: need the token unless the server runs with ``public_read``."""
     if not settings.public_read:
         _check(credentials, settings)
 
 
-def require_read_stream(credentials: _CredentialsDep, settings: Annotated[WebSettings, Depends(_settings)],
+async def require_read_stream(credentials: _CredentialsDep, settings: Annotated[WebSettings, Depends(_settings)],
                         token: Annotated[str | None, Query(description="The token, for clients that cannot send "
                                                                        "headers (a browser's EventSource)")] = None
                         ) -> None:
@@ -99,4 +101,4 @@ def require_read_stream(credentials: _CredentialsDep, settings: Annotated[WebSet
     a browser's ``EventSource`` cannot send an Authorization header. The header wins when both are sent."""
     if credentials is None and token is not None:
         credentials = HTTPAuthorizationCredentials(scheme="Bearer", credentials=token)
-    require_read(credentials, settings)
+    await require_read(credentials, settings)

@@ -26,9 +26,8 @@ class WebSettings(BaseModel):
     token : str
         The bearer token every command (and every read unless `public_read`) must present.
     sse_keepalive_s : float
-        Idle time after which the event stream sends a keep-alive comment [s].
-    sse_poll_s : float
-        How often the event stream looks at its queue [s].
+        Idle time after which the event stream sends a keep-alive comment [s]. The stream never polls: it
+        sleeps until an event, this timeout or shutdown.
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -38,7 +37,6 @@ class WebSettings(BaseModel):
     public_read: bool = False
     token: str = Field(min_length=16)
     sse_keepalive_s: float = Field(15.0, gt=0)
-    sse_poll_s: float = Field(0.2, gt=0, le=1.0)  # 50 clients wake 250 times a second, not 1000
 
     @field_validator("token")
     @classmethod

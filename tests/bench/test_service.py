@@ -1,6 +1,8 @@
 """The bench service behind the dashboard: queue, cached status, manual commands, bounded event queues."""
 
+import asyncio
 import queue
+import threading
 import time
 
 import pytest
@@ -90,3 +92,142 @@ def test_a_slow_subscriber_loses_old_events_and_never_blocks():
     assert bus.dropped == 97
     bus.unsubscribe(slow)
     assert bus.subscribers == 1
+
+
+# -- asynchronous subscribers (the web API's event streams) ---------------------------------------------------
+def _publish_later(bus, event, delay_s, stamps):
+    """Publish `event` from another thread (as the engine does) after `delay_s` [s], noting when."""
+    def publish():
+        stamps.append(time.perf_counter())
+        bus.publish(event)
+    threading.Timer(delay_s, publish).start()
+
+
+def test_an_async_subscriber_sleeps_until_another_thread_publishes():
+    bus = EventBus()
+
+    async def main():
+        subscription, stamps = bus.subscribe_async(), []
+        _publish_later(bus, {"kind": "log", "message": "hello"}, 0.1, stamps)
+        batch = await subscription.next_batch(5.0)
+        return batch, time.perf_counter() - stamps[0]
+
+    batch, latency_s = asyncio.run(main())
+    assert batch == [{"kind": "log", "message": "hello"}]
+    assert latency_s < 0.05  # woken by the publish itself, not by a poll
+
+
+def test_an_async_subscriber_times_out_empty_only_once_events_stop():
+    bus = EventBus()
+
+    async def main():
+        subscription, received, last = bus.subscribe_async(), [], []
+
+        async def publish():
+            for i in range(10):
+                await asyncio.sleep(0.03)
+                last[:] = [time.perf_counter()]
+                bus.publish({"kind": "point", "index": i})
+        publisher = asyncio.create_task(publish())
+        while batch := await subscription.next_batch(0.1):
+            received.extend(e["index"] for e in batch)
+        await publisher
+        return received, time.perf_counter() - last[0]
+
+    received, quiet_s = asyncio.run(main())
+    assert received == list(range(10))  # no timeout while events flow
+    assert 0.09 < quiet_s < 0.35  # between one and two idle periods after the last one, and some slack
+
+
+def test_one_hand_off_per_loop_and_one_encoding_per_event_for_any_number_of_subscribers():
+    bus, encoded = EventBus(), []
+
+    def encode(event):
+        encoded.append(event)
+        return f"{event['index']}".encode()
+
+    async def main():
+        loop = asyncio.get_running_loop()
+        hand_offs, call_soon_threadsafe = [], loop.call_soon_threadsafe
+
+        def counting(callback, *args):
+            hand_offs.append(callback)
+            return call_soon_threadsafe(callback, *args)
+        loop.call_soon_threadsafe = counting
+        subscriptions = [bus.subscribe_async(encode) for _ in range(50)]
+        publisher = threading.Thread(target=bus.publish, args=({"kind": "point", "index": 7},))
+        publisher.start()
+        publisher.join()
+        batches = [await s.next_batch(1.0) for s in subscriptions]
+        return len(hand_offs), batches
+
+    n_hand_offs, batches = asyncio.run(main())
+    assert n_hand_offs == 1 and len(encoded) == 1 and batches == [[b"7"]] * 50
+
+
+def test_a_slow_async_subscriber_loses_its_oldest_events_and_publish_never_waits():
+    bus = EventBus(maxsize=3)
+
+    async def main():
+        slow, elapsed = bus.subscribe_async(), []
+
+        def publish_all():
+            t0 = time.perf_counter()
+            for i in range(100):
+                bus.publish({"kind": "point", "index": i})
+            elapsed.append(time.perf_counter() - t0)
+        publisher = threading.Thread(target=publish_all)
+        publisher.start()
+        time.sleep(0.3)  # the loop is busy (blocked, even): the publisher must not wait for it
+        publisher.join()
+        await asyncio.sleep(0.05)  # now the loop fans the events out
+        return [e["index"] for e in await slow.next_batch(1.0)], elapsed[0]
+
+    indices, elapsed_s = asyncio.run(main())
+    assert indices == [97, 98, 99] and bus.dropped == 97
+    assert elapsed_s < 0.1
+
+
+def test_unsubscribing_ends_the_wait_and_stops_delivery():
+    bus = EventBus()
+
+    async def main():
+        subscription = bus.subscribe_async()
+        assert bus.subscribers == 1
+        waiting = asyncio.create_task(subscription.next_batch(30.0))
+        await asyncio.sleep(0.01)
+        bus.unsubscribe_async(subscription)
+        batch = await asyncio.wait_for(waiting, 1.0)
+        bus.publish({"kind": "log"})
+        await asyncio.sleep(0.01)
+        return batch, subscription
+
+    batch, subscription = asyncio.run(main())
+    assert batch == [] and subscription.closed and bus.subscribers == 0
+    assert asyncio.run(subscription.next_batch(30.0)) == []  # closed: no wait
+
+
+def test_close_from_another_thread_wakes_the_reader():
+    bus = EventBus()
+
+    async def main():
+        subscription = bus.subscribe_async()
+        threading.Timer(0.05, subscription.close).start()
+        t0 = time.perf_counter()
+        batch = await subscription.next_batch(30.0)
+        return batch, subscription.closed, time.perf_counter() - t0
+
+    batch, closed, waited_s = asyncio.run(main())
+    assert batch == [] and closed and waited_s < 1.0
+
+
+def test_publish_forgets_the_subscribers_of_a_loop_that_closed():
+    bus = EventBus()
+
+    async def main():
+        return bus.subscribe_async()
+
+    asyncio.run(main())  # its loop closes without unsubscribing
+    assert bus.subscribers == 1
+    bus.publish({"kind": "log"})  # no error for the publisher (the engine)
+    assert bus.subscribers == 0

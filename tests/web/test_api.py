@@ -3,17 +3,23 @@
 import csv
 import io
 import json
+import logging
 import signal
+import socket
 import stat
+import statistics
 import threading
 import time
+from contextlib import contextmanager
 from types import SimpleNamespace
 
 import cv2
+import httpx
 import numpy as np
 import pytest
 import uvicorn
 from fastapi.testclient import TestClient
+from uvicorn.logging import AccessFormatter
 
 from bench.benchfile import BenchFile
 from bench.campaign import Campaign, Seed003Procedure
@@ -22,7 +28,7 @@ from bench.runner import bench_data
 from bench.service import BenchService, EventBus
 from calibration.models import METHODS, calibration_from_dict
 from web.app import create_app
-from web.server import BenchServer
+from web.server import BenchServer, RedactToken, serve
 from web.security import load_or_create_token
 from web.settings import WebSettings
 
@@ -55,6 +61,7 @@ READS = [
     ("GET", "/api/runs/1", None),
     ("GET", "/api/runs/1/points", None),
     ("GET", "/api/runs/1/calibrations", None),
+    ("GET", "/api/runs/1/log", None),
     ("GET", "/api/runs/1/fit", None),
     ("GET", "/api/runs/1/data.csv", None),
     ("GET", "/api/calibrations/1/physical.json", None),
@@ -172,6 +179,7 @@ def test_status_frame_and_manual_commands(client):
     status = _wait_for(lambda: (s := client.get("/api/status", headers=AUTH).json())["table"] and s,
                        "the poller to fill the status cache")
     assert status["engine"]["state"] == "idle" and status["sensor"]["temperature_c"] > 0
+    assert (status["sensor"]["width_px"], status["sensor"]["height_px"]) == (640, 480)  # from a dark frame
     assert client.get("/api/frame.png", headers=AUTH).status_code == 404
     assert client.get("/api/frame/spot", headers=AUTH).status_code == 404
 
@@ -239,6 +247,13 @@ def test_pause_resume_abort_a_running_campaign(client, service):
     run = _finished_run(client, campaign_id)
     assert run["status"] == "aborted" and 0 < run["n_points_recorded"] < run["n_points_planned"]
 
+    log = client.get(f"/api/runs/{run['id']}/log", headers=AUTH).json()
+    assert log["count"] == len(log["data"]) > 0
+    states = [e["message"] for e in log["data"] if e["kind"] == "state"]
+    assert states.count("pausing → paused") == 2 and "paused → aborting" in states  # the operator's commands
+    last = log["data"][-1]["id"]
+    assert client.get(f"/api/runs/{run['id']}/log", params={"after_id": last}, headers=AUTH).json()["count"] == 0
+
 
 # -- campaigns ----------------------------------------------------------------------------------------------
 def test_an_invalid_campaign_body_is_422_naming_the_field(client):
@@ -299,7 +314,7 @@ def test_a_campaign_runs_and_its_results_download(client, service):
         assert 'attachment; filename="' in header.headers["content-disposition"]
 
 
-@pytest.mark.parametrize("url", ["/api/runs/99", "/api/runs/99/points", "/api/runs/99/calibrations",
+@pytest.mark.parametrize("url", ["/api/runs/99", "/api/runs/99/points", "/api/runs/99/calibrations", "/api/runs/99/log",
                                  "/api/runs/99/data.csv", "/api/calibrations/99/physical.json",
                                  "/api/calibrations/99/physical.h", "/api/campaigns/99/fleet"])
 def test_unknown_ids_are_404(client, url):
@@ -315,8 +330,8 @@ def test_an_unknown_method_is_404(client):
 
 # -- events -------------------------------------------------------------------------------------------------
 def _read_events(lines, *, until, timeout_s=10.0):
-    """Parse an SSE stream into (event, data) pairs and comments until `until(seen)`; never blocks for long,
-    because the stream sends a status event or a keep-alive comment at least every 0.2 s."""
+    """Parse an SSE stream into (event, data) pairs and comments until `until(seen)`; never blocks for long
+    when the stream sends a status event or a keep-alive comment every 0.2 s, as the `client` fixture's does."""
     seen, event, deadline = [], None, time.monotonic() + timeout_s
     for line in lines:
         if line.startswith(":"):
@@ -336,6 +351,7 @@ def test_the_event_stream_delivers_the_points_of_a_running_campaign(client, serv
     before = service.bus.subscribers
     with client.stream("GET", "/api/events", headers=AUTH) as response:
         assert response.status_code == 200 and response.headers["content-type"].startswith("text/event-stream")
+        assert response.headers["cache-control"] == "no-cache"
         assert service.bus.subscribers == before + 1  # subscribed before the answer: nothing can be missed
         assert client.post("/api/campaigns", json=SMALL_JSON, headers=AUTH).status_code == 202
         seen = _read_events(response.iter_lines(), until=lambda s: sum(k == "point" for k, _ in s) >= 3)
@@ -345,22 +361,107 @@ def test_the_event_stream_delivers_the_points_of_a_running_campaign(client, serv
     _wait_for(lambda: service.bus.subscribers == before, "the stream to unsubscribe")
 
 
-def test_an_idle_stream_sends_keep_alives_and_ends_at_shutdown():
-    bus = EventBus()  # no status poller: the stream is idle
-    app = create_app(SimpleNamespace(bus=bus), settings=WebSettings(token=TOKEN, sse_keepalive_s=0.1))
+def _idle_app(keepalive_s):
+    """An app around a bare bus (no status poller: its streams stay idle), and the bus."""
+    bus = EventBus()
+    return create_app(SimpleNamespace(bus=bus), settings=WebSettings(token=TOKEN, sse_keepalive_s=keepalive_s)), bus
+
+
+def test_an_idle_stream_sends_keep_alives():
+    app, bus = _idle_app(0.1)
     with TestClient(app) as client, client.stream("GET", "/api/events", headers=AUTH) as response:
         lines = response.iter_lines()
-        _read_events(lines, until=lambda s: [k for k, _ in s].count("comment") >= 2, timeout_s=5)
+        seen = _read_events(lines, until=lambda s: [k for k, _ in s].count("comment") >= 2, timeout_s=5)
+        assert seen == [("comment", ": keep-alive")] * 2
         bus.publish({"kind": "log", "message": "hello", "value": np.float64(1.5), "n": np.int64(2)})
         seen = _read_events(lines, until=lambda s: any(k == "log" for k, _ in s), timeout_s=5)
         assert seen[-1] == ("log", {"kind": "log", "message": "hello", "value": 1.5, "n": 2})
         assert bus.subscribers == 1
-        app.state.shutdown.set()
-        deadline = time.monotonic() + 5
-        for line in lines:  # ends, instead of holding the server; keep-alives bound each wait
-            assert not line or line.startswith(":")
-            assert time.monotonic() < deadline, "the stream did not end at shutdown"
+
+
+def test_an_event_from_the_engine_thread_reaches_an_idle_stream_at_once():
+    """The stream sleeps until the bus wakes it: no poll interval between a publish and the wire (a stream
+    that looked at its queue every 0.2 s was 0.1 s late on average)."""
+    app, bus = _idle_app(30.0)  # no keep-alive during the test: only the events wake the stream
+    latencies_s = []
+
+    def publish(index, stamps):
+        stamps.append(time.perf_counter())
+        bus.publish({"kind": "point", "index": index})
+
+    with TestClient(app) as client, client.stream("GET", "/api/events", headers=AUTH) as response:
+        lines = response.iter_lines()
+        for index in range(5):
+            stamps = []
+            threading.Timer(0.03 + 0.02 * index, publish, (index, stamps)).start()  # at varied phases
+            seen = _read_events(lines, until=lambda s: any(k == "point" for k, _ in s), timeout_s=5)
+            latencies_s.append(time.perf_counter() - stamps[0])
+            assert seen[-1][1]["index"] == index
+    assert max(latencies_s) < 0.1 and statistics.median(latencies_s) < 0.05, latencies_s
+
+
+def test_shutdown_set_from_any_thread_ends_an_idle_stream_at_once():
+    app, bus = _idle_app(30.0)  # only the shutdown can end the wait
+    with TestClient(app) as client, client.stream("GET", "/api/events", headers=AUTH) as response:
+        assert bus.subscribers == 1
+        threading.Timer(0.1, app.state.shutdown.set).start()
+        t0 = time.monotonic()
+        assert list(response.iter_lines()) == []  # the stream ends, instead of holding the server
+        assert time.monotonic() - t0 < 1.0
     _wait_for(lambda: bus.subscribers == 0, "the stream to unsubscribe", 5)
+
+
+def test_a_stream_opened_during_shutdown_ends_at_once():
+    app, bus = _idle_app(30.0)
+    with TestClient(app) as client:
+        app.state.shutdown.set()
+        with client.stream("GET", "/api/events", headers=AUTH) as response:
+            assert response.status_code == 200 and list(response.iter_lines()) == []
+    assert bus.subscribers == 0
+
+
+@contextmanager
+def _served(app):
+    """`app` under BenchServer on a free loopback port, in a thread: what a real client does reaches the app
+    as in production. Yields the server and its base URL."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    server = BenchServer(app, uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
+    thread = threading.Thread(target=server.run, name="test-uvicorn", daemon=True)
+    thread.start()
+    try:
+        _wait_for(lambda: server.started or not thread.is_alive(), "the server to start", 10)
+        assert server.started
+        yield server, f"http://127.0.0.1:{port}"
+    finally:
+        app.state.shutdown.set()
+        server.should_exit = True
+        thread.join(10)
+
+
+def test_a_client_that_disconnects_is_unsubscribed():
+    app, bus = _idle_app(0.1)
+    with _served(app) as (_, base), httpx.Client(headers=AUTH, timeout=5) as http:
+        with http.stream("GET", f"{base}/api/events") as response:
+            lines = response.iter_lines()  # kept: a discarded line iterator closes the connection
+            assert next(lines) == ": keep-alive"
+            assert bus.subscribers == 1
+        # leaving the block mid-stream closes the connection
+        _wait_for(lambda: bus.subscribers == 0, "the stream to unsubscribe", 5)
+        bus.publish({"kind": "log"})  # nobody left to deliver to, and no error for the publisher
+
+
+def test_the_server_asked_to_exit_ends_open_streams_at_once():
+    app, bus = _idle_app(30.0)  # only the exit can end the waits
+    with _served(app) as (server, base), httpx.Client(headers=AUTH, timeout=5) as http:
+        with http.stream("GET", f"{base}/api/events") as first, http.stream("GET", f"{base}/api/events") as second:
+            _wait_for(lambda: bus.subscribers == 2, "both streams to subscribe", 5)
+            t0 = time.monotonic()
+            server.handle_exit(signal.SIGINT, None)  # what Ctrl+C does
+            assert list(first.iter_lines()) == [] and list(second.iter_lines()) == []
+            assert time.monotonic() - t0 < 1.0
+    assert bus.subscribers == 0
 
 
 def test_the_server_ends_event_streams_when_asked_to_exit():
@@ -368,6 +469,25 @@ def test_the_server_ends_event_streams_when_asked_to_exit():
     server = BenchServer(app, uvicorn.Config(app))
     server.handle_exit(signal.SIGINT, None)
     assert app.state.shutdown.is_set() and server.should_exit
+
+
+def test_the_access_log_masks_the_token_of_an_event_stream(monkeypatch):
+    # shaped as uvicorn's access records: (client_addr, method, full_path, http_version, status_code)
+    record = logging.LogRecord("uvicorn.access", logging.INFO, __file__, 0, '%s - "%s %s HTTP/%s" %d',
+                               ("127.0.0.1:50000", "GET", f"/api/events?token={TOKEN}&x=1", "1.1", 200), None)
+    assert RedactToken().filter(record)
+    assert record.args == ("127.0.0.1:50000", "GET", "/api/events?token=***&x=1", "1.1", 200)
+    line = AccessFormatter('%(client_addr)s - "%(request_line)s" %(status_code)s', use_colors=False).format(record)
+    assert line == '127.0.0.1:50000 - "GET /api/events?token=***&x=1 HTTP/1.1" 200 OK'
+
+    app = create_app(SimpleNamespace(bus=EventBus()), settings=WebSettings(token=TOKEN))
+    monkeypatch.setattr(BenchServer, "run", lambda self: None)
+    access = logging.getLogger("uvicorn.access")
+    # restored after the test
+    monkeypatch.setattr(access, "filters", [f for f in access.filters if not isinstance(f, RedactToken)])
+    serve(app)
+    serve(app)
+    assert sum(isinstance(f, RedactToken) for f in access.filters) == 1  # installed by serve(), once
 
 
 # -- documentation ------------------------------------------------------------------------------------------

@@ -22,8 +22,9 @@ def frame_png(frame: np.ndarray, full_scale_dn: float) -> bytes:
 
 
 @router.get("/status", response_model=StatusPublic, summary="Cached bench status")
-def read_status(service: ServiceDep):
-    """Table, source, sensor and engine as last seen; refreshed in the background, so this never waits."""
+async def read_status(service: ServiceDep):
+    """Table, source, sensor and engine as last seen; refreshed in the background, so this never waits
+    (hence async: it needs no worker thread)."""
     return service.status()
 
 
