@@ -20,11 +20,12 @@ if ! command -v apt-get >/dev/null 2>&1; then
 fi
 sudo=""
 if [ "$(id -u)" -ne 0 ]; then
-    if ! command -v sudo >/dev/null 2>&1; then
+    # -n: never wait for a password nobody will type (CI); say what to do instead
+    if ! command -v sudo >/dev/null 2>&1 || ! sudo -n true 2>/dev/null; then
         echo "installing chromium needs root: run 'apt-get install chromium' as root, then try again" >&2
         exit 1
     fi
-    sudo="sudo"
+    sudo="sudo -n"
 fi
 echo "installing Debian's chromium for the browser tests (once)" >&2
 export DEBIAN_FRONTEND=noninteractive
@@ -33,4 +34,7 @@ if ! $sudo apt-get install -y -qq --no-install-recommends chromium >/dev/null; t
     $sudo apt-get update -qq
     $sudo apt-get install -y -qq --no-install-recommends chromium >/dev/null
 fi
-test -x "$chromium"
+if [ ! -x "$chromium" ]; then  # e.g. Ubuntu, whose chromium package installs a snap elsewhere
+    echo "chromium was installed but is not at $chromium: set SUNBENCH_CHROMIUM=/path/to/chromium" >&2
+    exit 1
+fi

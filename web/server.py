@@ -15,6 +15,7 @@ import logging
 import re
 import threading
 from collections.abc import Callable
+from urllib.parse import unquote_plus
 
 import uvicorn
 from fastapi import FastAPI
@@ -22,42 +23,53 @@ from fastapi import FastAPI
 
 class Shutdown(threading.Event):
     """``app.state.shutdown``: a :class:`threading.Event` that also runs callbacks when it is set, so what
-    sleeps in the event loop (an event stream waiting for the next event) ends at once without polling it."""
+    sleeps in the event loop (an event stream waiting for the next event) ends at once without polling it.
+
+    :meth:`set` runs in uvicorn's signal handler, on the event loop's thread, possibly while that thread is
+    inside :meth:`add_callback`: so it takes no lock, it reads the callbacks' current tuple (replaced, never
+    mutated, under the lock by add and remove).
+    """
 
     def __init__(self):
         super().__init__()
         self._callbacks_lock = threading.Lock()
-        self._callbacks: set[Callable[[], None]] = set()
+        self._callbacks: tuple[Callable[[], None], ...] = ()
 
     def set(self) -> None:
         super().set()
-        with self._callbacks_lock:
-            callbacks = list(self._callbacks)
-        for callback in callbacks:
+        for callback in self._callbacks:
             callback()
 
     def add_callback(self, callback: Callable[[], None]) -> None:
         """Call `callback` (in the thread that sets the event, so it must be thread-safe) when the event is set;
         at once if it already is."""
         with self._callbacks_lock:
-            self._callbacks.add(callback)
+            self._callbacks += (callback,)
         if self.is_set():
             callback()
 
     def remove_callback(self, callback: Callable[[], None]) -> None:
         with self._callbacks_lock:
-            self._callbacks.discard(callback)
+            self._callbacks = tuple(c for c in self._callbacks if c is not callback)
 
 
 class RedactToken(logging.Filter):
-    """Masks ``token=<value>`` in the arguments of uvicorn's access records (the request line's path and
-    query is the third), leaving their shape as uvicorn's access formatter expects it."""
+    """Masks the value of every ``token`` query parameter (however its name is percent-encoded: the API decodes
+    it) in the arguments of uvicorn's access records (the request line's path and query is the third), leaving
+    their shape as uvicorn's access formatter expects it."""
 
-    _TOKEN = re.compile(r"(?<=[?&])token=[^&\s]*")
+    _QUERY_ITEM = re.compile(r"(?<=[?&])([^=&\s]*)=([^&\s]*)")
+
+    @classmethod
+    def redact(cls, text: str) -> str:
+        def item(match: re.Match) -> str:
+            name = match.group(1)
+            return f"{name}=***" if unquote_plus(name).lower() == "token" else match.group(0)
+        return cls._QUERY_ITEM.sub(item, text)
 
     def filter(self, record: logging.LogRecord) -> bool:
         if isinstance(record.args, tuple):
-            record.args = tuple(self._TOKEN.sub("token=***", a) if isinstance(a, str) else a for a in record.args)
+            record.args = tuple(self.redact(a) if isinstance(a, str) else a for a in record.args)
         return True
 
 

@@ -2,6 +2,7 @@
 
 import asyncio
 import queue
+import statistics
 import threading
 import time
 
@@ -107,14 +108,19 @@ def test_an_async_subscriber_sleeps_until_another_thread_publishes():
     bus = EventBus()
 
     async def main():
-        subscription, stamps = bus.subscribe_async(), []
-        _publish_later(bus, {"kind": "log", "message": "hello"}, 0.1, stamps)
-        batch = await subscription.next_batch(5.0)
-        return batch, time.perf_counter() - stamps[0]
+        subscription, latencies = bus.subscribe_async(), []
+        for i in range(5):
+            stamps = []
+            _publish_later(bus, {"kind": "log", "index": i}, 0.03 + 0.02 * i, stamps)  # at varied phases
+            batch = await subscription.next_batch(5.0)
+            latencies.append(time.perf_counter() - stamps[0])
+            assert batch == [{"kind": "log", "index": i}]
+        return latencies
 
-    batch, latency_s = asyncio.run(main())
-    assert batch == [{"kind": "log", "message": "hello"}]
-    assert latency_s < 0.05  # woken by the publish itself, not by a poll
+    latencies_s = asyncio.run(main())
+    # woken by the publish itself: a poll (the old streams looked every 0.2 s) would put the median near 0.1 s;
+    # the median, so that one stall of a busy CI machine does not decide
+    assert statistics.median(latencies_s) < 0.05, latencies_s
 
 
 def test_an_async_subscriber_times_out_empty_only_once_events_stop():
@@ -125,18 +131,18 @@ def test_an_async_subscriber_times_out_empty_only_once_events_stop():
 
         async def publish():
             for i in range(10):
-                await asyncio.sleep(0.03)
+                await asyncio.sleep(0.03)  # well inside the idle period, even on a busy machine
                 last[:] = [time.perf_counter()]
                 bus.publish({"kind": "point", "index": i})
         publisher = asyncio.create_task(publish())
-        while batch := await subscription.next_batch(0.1):
+        while batch := await subscription.next_batch(0.3):
             received.extend(e["index"] for e in batch)
         await publisher
         return received, time.perf_counter() - last[0]
 
     received, quiet_s = asyncio.run(main())
     assert received == list(range(10))  # no timeout while events flow
-    assert 0.09 < quiet_s < 0.35  # between one and two idle periods after the last one, and some slack
+    assert 0.29 < quiet_s < 1.0  # between one and two idle periods after the last one, and some slack
 
 
 def test_one_hand_off_per_loop_and_one_encoding_per_event_for_any_number_of_subscribers():

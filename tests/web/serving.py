@@ -66,5 +66,10 @@ def serving(home: Path, command: list[str] | None = None, *options: str, timeout
             yield served
         finally:
             proc.terminate()
-            proc.wait(timeout=20)
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:  # a server that does not stop on SIGTERM is a failure, not a leak
+                proc.kill()
+                proc.wait()
+                raise AssertionError(f"the server did not stop on SIGTERM:\n{served.output()}") from None
     assert "Traceback" not in served.output(), served.output()

@@ -1,7 +1,7 @@
 // Results of a run: the metrics of every method (table 4.1) and seed 003's figures 4.4 and 4.6–4.9.
 // The radius and the fitted directions come from GET /api/runs/{id}/fit (computed by the calibration code).
 /* global Plotly */
-import { $, api, download, el, fmt, initTokenForm, matrixLayout, PLOT_CONFIG, plotLayout, query, report } from "./common.js";
+import { $, api, download, el, fmt, initTokenForm, matrixLayout, PLOT_CONFIG, plotLayout, query, report, say } from "./common.js";
 
 const runParam = query("run");
 
@@ -90,24 +90,38 @@ function zenithResidualPlot(fit) {
     "true zenith θ [°]", "θ fitted − θ true [°]"), PLOT_CONFIG);
 }
 
-// fig. 4.8: the azimuth set on the bench against the spot's azimuth (eq. 10), and the calibration's azimuth;
-// near the axis the azimuth is undefined, so points within 5° of it are left out. φ_meas is unwrapped
-// against the set azimuth plus their median offset (eq. 11's b0), so the line does not jump at 0°/360°.
+// fig. 4.8: the azimuth set on the bench against the spot's azimuth φ_meas (eq. 10), with the calibration's
+// azimuth, as eq. 11 relates them: φ = b1·φ_meas + b0, b1 = ±1 (a mirrored detector turns the other way).
+// Near the axis the azimuth is undefined, so points within 5° of it are left out. φ_meas stays in [0°, 360°);
+// the azimuths are unwrapped against b1·φ_meas + b0, so the line does not jump at 0°/360°.
+const wrap = (a) => ((a + 180) % 360 + 360) % 360 - 180;
+
+function azimuthLine(off) {
+  const median = (values) => values.slice().sort((a, b) => a - b)[Math.floor(values.length / 2)] ?? 0;
+  const spread = (b1) => {
+    const offsets = off.map((p) => wrap(p.azimuth_deg - b1 * p.azimuth_spot_deg));
+    const b0 = median(offsets);
+    return { b1, b0, cost: offsets.reduce((sum, o) => sum + Math.abs(wrap(o - b0)), 0) };
+  };
+  const [plus, minus] = [spread(1), spread(-1)];
+  return plus.cost <= minus.cost ? plus : minus;
+}
+
 function azimuthPlot(fit) {
-  const wrap = (a) => ((a + 180) % 360 + 360) % 360 - 180;
   const off = fit.data.filter((p) => p.zenith_deg >= 5 && p.azimuth_fit_deg !== null);
-  const offsets = off.map((p) => wrap(p.azimuth_spot_deg - p.azimuth_deg)).sort((a, b) => a - b);
-  const b0 = offsets.length ? offsets[Math.floor(offsets.length / 2)] : 0;
-  const meas = off.map((p) => p.azimuth_deg + b0 + wrap(p.azimuth_spot_deg - p.azimuth_deg - b0));
+  const { b1, b0 } = azimuthLine(off);
+  const meas = off.map((p) => p.azimuth_spot_deg);
+  const unwrap = (phi, i) => b1 * meas[i] + b0 + wrap(phi - b1 * meas[i] - b0);
   const order = off.map((_, i) => i).sort((i, j) => meas[i] - meas[j]);
   Plotly.react("azimuth-plot", [
-    { type: "scatter", mode: "markers", name: "bench azimuth φ set", x: meas, y: off.map((p) => p.azimuth_deg),
-      text: off.map((p) => `zenith ${fmt(p.zenith_deg, 1)}°`), marker: { size: 6 } },
+    { type: "scatter", mode: "markers", name: "bench azimuth φ set", x: meas, y: off.map((p, i) => unwrap(p.azimuth_deg, i)),
+      text: off.map((p) => `set ${fmt(p.azimuth_deg, 1)}°, zenith ${fmt(p.zenith_deg, 1)}°`), marker: { size: 6 } },
     { type: "scatter", mode: "lines", name: `${fit.method} azimuth`, x: order.map((i) => meas[i]),
-      y: order.map((i) => off[i].azimuth_deg + wrap(off[i].azimuth_fit_deg - off[i].azimuth_deg)), line: { width: 1.5 } },
+      y: order.map((i) => unwrap(off[i].azimuth_fit_deg, i)), line: { width: 1.5 } },
     { type: "scatter", mode: "markers", name: "residual (right axis)", x: meas, yaxis: "y2",
       y: off.map((p) => p.azimuth_residual_deg), marker: { size: 4, symbol: "diamond" } },
-  ], plotLayout(`azimuth of ${fit.method} against the spot's azimuth (fig. 4.8)`, "φ meas, eq. 10 [°]", "φ [°]",
+  ], plotLayout(`azimuth of ${fit.method} against the spot's azimuth (fig. 4.8)`, "φ meas, eq. 10 [°]",
+    `φ, unwrapped about ${b1 < 0 ? "−" : ""}φ meas ${b0 < 0 ? "−" : "+"} ${fmt(Math.abs(b0), 1)}° [°]`,
     { yaxis2: { title: { text: "residual [°]" }, overlaying: "y", side: "right", zeroline: false },
       margin: { t: 40, r: 60, b: 50, l: 60 } }), PLOT_CONFIG);
 }
@@ -151,9 +165,11 @@ async function showMethod(runId, points, method, sensor) {
 
 async function showRun(runId) {
   $("#run-summary").hidden = false;
-  const [run, points, calibrations, status] = await Promise.all([
-    api(`/api/runs/${runId}`), api(`/api/runs/${runId}/points`), api(`/api/runs/${runId}/calibrations`),
-    api("/api/status")]);
+  const [run, points, calibrations] = await Promise.all([
+    api(`/api/runs/${runId}`), api(`/api/runs/${runId}/points`), api(`/api/runs/${runId}/calibrations`)]);
+  // the detector's size for the spot map's axes: the bench's sensor now, if it answers (else the axes fit the
+  // points); a run recorded with another sensor than today's still has its points drawn where they were
+  const status = await api("/api/status").catch(() => null);
   $("#run-heading").textContent = `Run ${run.id} · sensor ${run.sensor_id}`;
   $("#run-info").textContent = `${run.plan_name}, ${run.status}${run.exit_reason ? ` (${run.exit_reason})` : ""}, `
     + `${run.n_points_recorded} / ${run.n_points_planned ?? "–"} points, ${run.started_utc ?? "–"} → ${run.ended_utc ?? "–"}`;
@@ -161,9 +177,13 @@ async function showRun(runId) {
   const chosen = usable.find((c) => c.chosen) || usable[0];
   const select = $("#method");
   select.replaceChildren(...usable.map((c) => el("option", { value: c.method, selected: c === chosen }, c.method + (c.chosen ? " (chosen)" : ""))));
-  select.onchange = () => showMethod(runId, points.data, select.value, status.sensor);
+  select.onchange = () => showMethod(runId, points.data, select.value, status?.sensor);
   if (calibrations.data.length) metricsTable(calibrations.data);
-  await showMethod(runId, points.data, chosen?.method, status.sensor);
+  if (!usable.length) {
+    say(calibrations.data.length ? "every fit of this run failed: see the table"
+      : `no calibration: the run ${run.status === "completed" ? "has none stored" : `was ${run.status} before its fit`}`, true);
+  }
+  await showMethod(runId, points.data, chosen?.method, status?.sensor);
 }
 
 async function init() {

@@ -3,6 +3,7 @@
 import { $, api, duration, el, getToken, initTokenForm, matrixLayout, PLOT_CONFIG, report, say } from "./common.js";
 
 const spots = { x: [], y: [], zenith: [], text: [] };
+const seenKeys = new Set(); // the points of the run on the map, so a late catch-up adds each once
 let runId = null;
 let source = null;
 let drawPending = false;
@@ -27,6 +28,7 @@ function draw() {
 
 function resetSpots() {
   for (const k of Object.keys(spots)) spots[k] = [];
+  seenKeys.clear();
   draw();
 }
 
@@ -69,16 +71,24 @@ async function catchUp() {
   $("#engine-state").textContent = e.state;
   progress(e.index, e.total, e.eta_s);
   if (e.run_id && e.run_id !== runId) {
-    setRun(e.run_id, e.sensor_id);
+    const id = e.run_id;
+    setRun(id, e.sensor_id);
     resetSpots();
+    let points, runLog;
     try {
-      const [points, runLog] = await Promise.all([api(`/api/runs/${e.run_id}/points`), api(`/api/runs/${e.run_id}/log`)]);
-      for (const p of points.data) addSpot(p.x_px, p.y_px, p.zenith_stage_deg, p.key);
-      draw();
-      $("#log").replaceChildren();
-      for (const entry of runLog.data) log(entry.kind, entry.message, new Date(entry.t_utc));
-    } catch (err) { report(err); }
-    if (e.state === "idle") finishedLink(e.run_id);
+      [points, runLog] = await Promise.all([api(`/api/runs/${id}/points`), api(`/api/runs/${id}/log`)]);
+    } catch (err) { report(err); return; }
+    if (runId !== id) return; // another run started while these were on their way: its events own the page
+    // points that arrived as events meanwhile are on the map already
+    for (const p of points.data) if (!seenKeys.has(p.key)) addSpot(p.x_px, p.y_px, p.zenith_stage_deg, p.key);
+    draw();
+    // what happened before the page joined, below what it saw live (the list is newest first)
+    const list = $("#log");
+    const live = [...list.children];
+    list.replaceChildren();
+    for (const entry of runLog.data) log(entry.kind, entry.message, new Date(entry.t_utc));
+    list.prepend(...live);
+    if (e.state === "idle") finishedLink(id);
   }
 }
 
@@ -89,6 +99,7 @@ const HANDLERS = {
   point: (d) => {
     if (d.run_id && d.run_id !== runId) setRun(d.run_id);
     progress(d.index, d.total, d.eta_s);
+    seenKeys.add(d.key);
     for (const [x, y] of d.spots || []) addSpot(x, y, d.zenith_stage_deg, d.key);
     draw();
   },
