@@ -110,6 +110,16 @@ def paste_token(page: Page, token: str) -> None:
     expect(page.locator("#token-state")).to_have_text("token set")
 
 
+def jog_to(page: Page, azimuth_deg: float, zenith_deg: float) -> None:
+    """Move the table with the bench page's form and wait until the status shows it there."""
+    page.fill("#jog-form input[name=azimuth_deg]", str(azimuth_deg))
+    page.fill("#jog-form input[name=zenith_deg]", str(zenith_deg))
+    page.click("#jog-form button[type=submit]")
+    expect(page.locator("#message")).to_have_text(f"table at azimuth {azimuth_deg:.3f}°, zenith {zenith_deg:.3f}°")
+    expect(page.locator("#s-az")).to_have_text(f"{azimuth_deg:.3f}°")
+    expect(page.locator("#s-zen")).to_have_text(f"{zenith_deg:.3f}°")
+
+
 def plot_points(page: Page, plot_id: str) -> int:
     """How many markers plotly drew in the plot `plot_id`."""
     return page.locator(f"#{plot_id} .scatterlayer .point").count()
@@ -204,11 +214,7 @@ def test_the_bench_page_lights_the_lamp_opens_the_shutter_and_jogs(page, server)
     page.click("#shutter-open")
     expect(page.locator("#message")).to_have_text("shutter open")
     expect(page.locator("#s-shutter")).to_have_text("open")
-    page.fill("#jog-form input[name=azimuth_deg]", "45")
-    page.fill("#jog-form input[name=zenith_deg]", "20")
-    page.click("#jog-form button[type=submit]")
-    expect(page.locator("#message")).to_have_text("table at azimuth 45.000°, zenith 20.000°")
-    expect(page.locator("#s-az")).to_have_text("45.000°")
+    jog_to(page, 45, 20)
     page.fill("#jog-step", "10")
     page.click("[data-jog='zen:1']")
     expect(page.locator("#s-zen")).to_have_text("30.000°")
@@ -232,10 +238,7 @@ def test_the_bench_page_lights_the_lamp_opens_the_shutter_and_jogs(page, server)
     expect(page.locator("#message")).to_have_text("lamp to standby")
     expect(page.locator("#s-shutter")).to_have_text("closed")
     expect(page.locator("#s-lamp")).to_have_text("on")
-    page.fill("#jog-form input[name=zenith_deg]", "0")
-    page.fill("#jog-form input[name=azimuth_deg]", "0")
-    page.click("#jog-form button[type=submit]")
-    expect(page.locator("#s-zen")).to_have_text("0.000°")
+    jog_to(page, 0, 0)
 
 
 # -- refusals -----------------------------------------------------------------------------------------------
