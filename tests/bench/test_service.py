@@ -8,23 +8,13 @@ import time
 
 import pytest
 
-from bench.benchfile import BenchFile
 from bench.campaign import Campaign, Seed003Procedure
-from bench.catalogue import Catalogue
 from bench.runner import PreflightRefused
-from bench.service import BenchBusy, BenchService, EventBus
+from bench.service import BenchBusy, EventBus
 from drivers.errors import LimitError
 
 SMALL = Campaign(name="small", frames="none", seed003=Seed003Procedure(
     azimuth_step_deg=90.0, repeats=1, centre_repeats=1, tilt_stage=False))
-
-
-@pytest.fixture
-def service(tmp_path):
-    svc = BenchService(BenchFile(), Catalogue(tmp_path / "c.sqlite"), time_scale=0.0, status_period_s=0.05).start()
-    yield svc
-    svc.close()
-    svc.catalogue.close()
 
 
 def _events_until(q, kind, timeout_s=30.0):

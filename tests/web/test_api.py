@@ -21,19 +21,17 @@ import uvicorn
 from fastapi.testclient import TestClient
 from uvicorn.logging import AccessFormatter
 
-from bench.benchfile import BenchFile
 from bench.campaign import Campaign, Seed003Procedure
-from bench.catalogue import Catalogue
 from bench.runner import bench_data
-from bench.service import BenchService, EventBus
+from bench.service import EventBus
 from calibration.models import METHODS, calibration_from_dict
 from web.app import create_app
 from web.server import BenchServer, RedactToken, Shutdown, serve
 from web.security import load_or_create_token
 from web.settings import WebSettings
 
-TOKEN = "test-token-0123456789abcdef"
-AUTH = {"Authorization": f"Bearer {TOKEN}"}
+from inprocess import AUTH, TOKEN, api_client
+
 SMALL = Campaign(name="small", frames="none", seed003=Seed003Procedure(
     azimuth_step_deg=90.0, repeats=1, centre_repeats=1, tilt_stage=False))
 SMALL_JSON = SMALL.model_dump(mode="json")
@@ -68,24 +66,6 @@ READS = [
     ("GET", "/api/calibrations/1/physical.h", None),
     ("GET", "/api/events", None),
 ]
-
-
-@pytest.fixture
-def service(tmp_path):
-    svc = BenchService(BenchFile(), Catalogue(tmp_path / "c.sqlite"), time_scale=0.0, status_period_s=0.05).start()
-    yield svc
-    svc.close()
-    svc.catalogue.close()
-
-
-def _client(service, **settings):
-    return TestClient(create_app(service, settings=WebSettings(token=TOKEN, sse_keepalive_s=0.2, **settings)))
-
-
-@pytest.fixture
-def client(service):
-    with _client(service) as c:
-        yield c
 
 
 def _wait_for(predicate, what, timeout_s=15.0):
@@ -155,7 +135,7 @@ def test_settings_fail_fast():
 @pytest.mark.parametrize("headers", [{}, {"Authorization": "Bearer wrong-token-0123456789"},
                                      {"Authorization": f"Basic {TOKEN}"}], ids=["none", "wrong", "basic"])
 def test_every_command_needs_the_token(service, public_read, headers):
-    with _client(service, public_read=public_read) as client:
+    with api_client(service, public_read=public_read) as client:
         for method, url, body in COMMANDS:
             response = client.request(method, url, json=body, headers=headers)
             assert response.status_code == 401, (url, response.text)
@@ -164,7 +144,7 @@ def test_every_command_needs_the_token(service, public_read, headers):
 
 
 def test_reads_need_the_token_unless_public_read(service):
-    with _client(service) as private, _client(service, public_read=True) as public:
+    with api_client(service) as private, api_client(service, public_read=True) as public:
         for method, url, body in READS:
             response = private.request(method, url, json=body)
             assert response.status_code == 401, (url, response.text)

@@ -6,19 +6,13 @@ import time
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 
-from bench.benchfile import BenchFile
 from bench.campaign import Campaign, Seed003Procedure
-from bench.catalogue import Catalogue
-from bench.service import BenchService
 from calibration.models import METHODS
-from web.app import create_app
 from web.routes.pages import PAGES, STATIC_DIR
-from web.settings import WebSettings
 
-TOKEN = "test-token-0123456789abcdef"
-AUTH = {"Authorization": f"Bearer {TOKEN}"}
+from inprocess import AUTH, TOKEN, api_client
+
 SMALL = Campaign(name="small", frames="none", seed003=Seed003Procedure(
     azimuth_step_deg=90.0, repeats=1, centre_repeats=1, tilt_stage=False)).model_dump(mode="json")
 
@@ -26,24 +20,6 @@ SMALL = Campaign(name="small", frames="none", seed003=Seed003Procedure(
 MODULES = {"/": ("bench.js", False), "/launch": ("launch.js", False), "/run": ("run.js", True),
            "/results": ("results.js", True), "/fleet": ("fleet.js", False)}
 EXTERNAL_URL = re.compile(r"(?:https?:)?//[a-z0-9.-]+\.[a-z]{2,}", re.IGNORECASE)
-
-
-@pytest.fixture
-def service(tmp_path):
-    svc = BenchService(BenchFile(), Catalogue(tmp_path / "c.sqlite"), time_scale=0.0, status_period_s=0.05).start()
-    yield svc
-    svc.close()
-    svc.catalogue.close()
-
-
-def _client(service, **settings):
-    return TestClient(create_app(service, settings=WebSettings(token=TOKEN, sse_keepalive_s=0.2, **settings)))
-
-
-@pytest.fixture
-def client(service):
-    with _client(service) as c:
-        yield c
 
 
 def _local_assets(html: str) -> list[str]:
@@ -143,7 +119,7 @@ def test_the_query_token_opens_nothing_but_the_event_stream(client):
 
 
 def test_with_public_read_the_event_stream_needs_no_token(service):
-    with _client(service, public_read=True) as client, client.stream("GET", "/api/events") as response:
+    with api_client(service, public_read=True) as client, client.stream("GET", "/api/events") as response:
         assert response.status_code == 200
         assert _first_event(response)
 
