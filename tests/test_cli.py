@@ -4,55 +4,30 @@ from __future__ import annotations
 
 import csv
 import json
-import re
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
-from bench.cli import app
 from bench.datafile import read_calibration, write_bench_csv
 from calibration.geometry import angular_error_deg
 from calibration.models import METHODS
 from calibration.synthetic import synthetic_bench_data
 
-# no colour codes, wide enough that nothing wraps
-runner = CliRunner(env={"COLUMNS": "160", "FORCE_COLOR": None, "NO_COLOR": "1", "TERM": "dumb"})
-
-ALL_METHODS = ("seed003", "seed003-tilt", "seed003-sector", "physical")
+from clitools import ALL_METHODS, assert_user_error_text, invoke, method_rows
 
 
-def run(*args: str):
-    result = runner.invoke(app, [str(a) for a in args])
-    assert result.exception is None or isinstance(result.exception, SystemExit), result.exception
-    return result
-
-
-def method_rows(stdout: str) -> dict[str, bool]:
-    """Method name → chosen ('*'), from the rows of the metrics table."""
-    rows = {}
-    for line in stdout.splitlines():
-        m = re.match(r"^\W*(seed003-tilt|seed003-sector|seed003|physical)( \*)?\s", line)
-        if m:
-            rows[m.group(1)] = bool(m.group(2))
-    return rows
 
 
 def assert_user_error(result, *fragments: str) -> str:
     """Exit code 2, one error line naming the problem, no traceback."""
-    assert result.exit_code == 2, (result.exit_code, result.output)
     assert result.exception is None or isinstance(result.exception, SystemExit)
-    message = result.stderr
-    assert message.startswith("error:"), message
     assert "Traceback" not in result.output
-    flat = " ".join(message.split())
-    for fragment in fragments:
-        assert fragment in flat, (fragment, flat)
+    message = assert_user_error_text(result.stderr, result.exit_code, *fragments)
     assert result.stdout == ""
-    return flat
+    return message
 
 
 @pytest.fixture(scope="module")
@@ -71,7 +46,7 @@ def bench_csv(workdir) -> Path:
 def fitted(workdir, bench_csv):
     """`fit cmos DATA.csv -o CAL.json --header CAL.h`, run once for the module."""
     cal, header = workdir / "CAL.json", workdir / "CAL.h"
-    result = run("fit", "cmos", bench_csv, "-o", cal, "--header", header)
+    result = invoke("fit", "cmos", bench_csv, "-o", cal, "--header", header)
     return result, cal, header
 
 
@@ -118,7 +93,7 @@ def test_fit_writes_c_header(fitted):
 
 def test_fit_with_method_seed003(workdir, bench_csv):
     cal = workdir / "seed003.json"
-    result = run("fit", "cmos", bench_csv, "--method", "seed003", "-o", cal)
+    result = invoke("fit", "cmos", bench_csv, "--method", "seed003", "-o", cal)
     assert result.exit_code == 0, result.output
     rows = method_rows(result.stdout)
     assert set(rows) == set(ALL_METHODS)
@@ -136,9 +111,9 @@ def test_fit_one_sensor_of_a_batch(workdir):
     batch = workdir / "batch.csv"
     batch.write_text((workdir / "a.csv").read_text()
                      + "".join((workdir / "b.csv").read_text().splitlines(keepends=True)[1:]))
-    assert_user_error(run("fit", "cmos", batch), str(batch), "2 sensors", "--sensor")
+    assert_user_error(invoke("fit", "cmos", batch), str(batch), "2 sensors", "--sensor")
     cal = workdir / "b.json"
-    result = run("fit", "cmos", batch, "--sensor", "SN-B", "--method", "seed003", "-o", cal)
+    result = invoke("fit", "cmos", batch, "--sensor", "SN-B", "--method", "seed003", "-o", cal)
     assert result.exit_code == 0, result.output
     assert f"{len(b)} points" in result.stdout
     assert json.loads(cal.read_text())["sensor_id"] == "SN-B"
@@ -149,7 +124,7 @@ def test_fit_one_sensor_of_a_batch(workdir):
 def test_apply_recovers_the_true_directions(workdir, fitted, bench_csv):
     _, cal, _ = fitted
     out = workdir / "OUT.csv"
-    result = run("apply", cal, bench_csv, "-o", out)
+    result = invoke("apply", cal, bench_csv, "-o", out)
     assert result.exit_code == 0, result.output
     assert "264 directions" in result.stdout
 
@@ -179,7 +154,7 @@ def test_apply_to_a_plain_spot_file(workdir, fitted):
     x_normal, y_normal = float(normal.x_px[0]), float(normal.y_px[0])
     spots.write_text(f"frame,x_px,y_px\nf1,{x_normal!r},{y_normal!r}\nf2,400.0,300.0\n")
     out = workdir / "spots-out.csv"
-    result = run("apply", cal, spots, "--output", out)
+    result = invoke("apply", cal, spots, "--output", out)
     assert result.exit_code == 0, result.output
     with out.open() as fh:
         rows = list(csv.reader(fh))
@@ -194,7 +169,7 @@ def test_apply_to_a_plain_spot_file(workdir, fitted):
 def test_header_command(workdir, fitted):
     _, cal, _ = fitted
     out = workdir / "sub" / "X.h"
-    result = run("header", cal, "-o", out)
+    result = invoke("header", cal, "-o", out)
     assert result.exit_code == 0, result.output
     text = out.read_text()
     assert "sunbench_sun_direction" in text and "SN-0042" in text
@@ -203,7 +178,7 @@ def test_header_command(workdir, fitted):
 # --- demo ---------------------------------------------------------------------------------------------------
 
 def test_demo_writes_files_that_fit_again(tmp_path):
-    result = run("demo", "--out", tmp_path)
+    result = invoke("demo", "--out", tmp_path)
     assert result.exit_code == 0, result.output
     assert set(method_rows(result.stdout)) == set(ALL_METHODS)
     assert "truth" in result.stdout
@@ -212,7 +187,7 @@ def test_demo_writes_files_that_fit_again(tmp_path):
     assert json.loads((tmp_path / "calibration.json").read_text())["method"] == "physical"
     assert "sunbench_sun_direction" in (tmp_path / "calibration.h").read_text()
 
-    refit = run("fit", "cmos", tmp_path / "bench-data.csv", "-m", "physical", "-o", tmp_path / "refit.json")
+    refit = invoke("fit", "cmos", tmp_path / "bench-data.csv", "-m", "physical", "-o", tmp_path / "refit.json")
     assert refit.exit_code == 0, refit.output
     first = json.loads((tmp_path / "calibration.json").read_text())["parameters"]
     second = json.loads((tmp_path / "refit.json").read_text())["parameters"]
@@ -233,26 +208,26 @@ def _csv(tmp_path, text: str, name: str = "bad.csv") -> Path:
 
 def test_missing_column(tmp_path):
     path = _csv(tmp_path, "zenith_deg,azimuth_deg,x_px\n0,0,1\n")
-    assert_user_error(run("fit", "cmos", path), str(path), "missing column", "y_px")
+    assert_user_error(invoke("fit", "cmos", path), str(path), "missing column", "y_px")
 
 
 def test_non_numeric_cell(tmp_path, bench_csv):
     lines = bench_csv.read_text().splitlines()
     lines[5] = lines[5].replace(lines[5].split(",")[3], "12,5x", 1).replace("12,5x", "12;5x")
     path = _csv(tmp_path, "\n".join(lines) + "\n")
-    assert_user_error(run("fit", "cmos", path), str(path), "row 5 (line 6)", "column 'y_px'", "'12;5x' is not a number")
+    assert_user_error(invoke("fit", "cmos", path), str(path), "row 5 (line 6)", "column 'y_px'", "'12;5x' is not a number")
 
 
 def test_nan_cell(tmp_path):
     path = _csv(tmp_path, f"{HEADER}\n0,0,1,1\n10,45,nan,2\n")
-    assert_user_error(run("fit", "cmos", path), str(path), "row 2 (line 3)", "column 'x_px'", "not a finite number")
+    assert_user_error(invoke("fit", "cmos", path), str(path), "row 2 (line 3)", "column 'x_px'", "not a finite number")
 
 
 def test_too_few_points(tmp_path):
     data = synthetic_bench_data(zenith_deg=[0, 10, 10, 20, 20], azimuth_deg=[0, 0, 90, 0, 90])
     path = tmp_path / "few.csv"
     write_bench_csv(path, data)
-    assert_user_error(run("fit", "cmos", path), str(path), "too few bench directions, 5")
+    assert_user_error(invoke("fit", "cmos", path), str(path), "too few bench directions, 5")
 
 
 def test_all_points_at_one_azimuth(tmp_path):
@@ -260,7 +235,7 @@ def test_all_points_at_one_azimuth(tmp_path):
     data = synthetic_bench_data(zenith_deg=zenith, azimuth_deg=np.full(zenith.size, 45.0))
     path = tmp_path / "one-azimuth.csv"
     write_bench_csv(path, data)
-    assert_user_error(run("fit", "cmos", path), str(path), "column 'azimuth_deg'", "one azimuth (45°)")
+    assert_user_error(invoke("fit", "cmos", path), str(path), "column 'azimuth_deg'", "one azimuth (45°)")
 
 
 def test_calibration_of_another_version(tmp_path, fitted, bench_csv):
@@ -269,9 +244,9 @@ def test_calibration_of_another_version(tmp_path, fitted, bench_csv):
     document["version"] = 99
     bad = tmp_path / "v99.json"
     bad.write_text(json.dumps(document))
-    assert_user_error(run("apply", bad, bench_csv, "-o", tmp_path / "o.csv"), str(bad), "version 99")
+    assert_user_error(invoke("apply", bad, bench_csv, "-o", tmp_path / "o.csv"), str(bad), "version 99")
     assert not (tmp_path / "o.csv").exists()
-    assert_user_error(run("header", bad, "-o", tmp_path / "o.h"), str(bad), "version 99")
+    assert_user_error(invoke("header", bad, "-o", tmp_path / "o.h"), str(bad), "version 99")
     assert not (tmp_path / "o.h").exists()
 
 
@@ -283,22 +258,22 @@ def test_missing_file(tmp_path, fitted, bench_csv, command):
             "apply-cal": ["apply", missing, bench_csv, "-o", tmp_path / "o.csv"],
             "apply-spots": ["apply", cal, missing, "-o", tmp_path / "o.csv"],
             "header": ["header", missing, "-o", tmp_path / "o.h"]}[command]
-    assert_user_error(run(*args), str(missing), "no such file")
+    assert_user_error(invoke(*args), str(missing), "no such file")
 
 
 def test_unknown_method(bench_csv):
-    assert_user_error(run("fit", "cmos", bench_csv, "--method", "magic"), "--method must be one of",
+    assert_user_error(invoke("fit", "cmos", bench_csv, "--method", "magic"), "--method must be one of",
                       ", ".join(ALL_METHODS), "'magic'")
 
 
 def test_bad_bench_geometry(tmp_path, bench_csv):
-    assert_user_error(run("fit", "cmos", bench_csv, "--source-distance-mm", "-5"), "source_distance_mm")
+    assert_user_error(invoke("fit", "cmos", bench_csv, "--source-distance-mm", "-5"), "source_distance_mm")
 
 
 def test_error_text_is_not_read_as_markup(tmp_path):
     # a cell and a file name with square brackets are shown as they are, and '[/x]' does not crash rich
     path = _csv(tmp_path, f"{HEADER}\n0,0,[/x],1\n1,0,[bold],1\n", name="run[bold].csv")
-    assert_user_error(run("fit", "cmos", path), "run[bold].csv", "'[/x]' is not a number")
+    assert_user_error(invoke("fit", "cmos", path), "run[bold].csv", "'[/x]' is not a number")
 
 
 # --- the installed console script ---------------------------------------------------------------------------
@@ -326,9 +301,9 @@ def test_console_script(tmp_path, fitted):
 
 def test_fit_glass_index_options(workdir, bench_csv):
     out = workdir / "cal-index.json"
-    result = run("fit", "cmos", bench_csv, "--fit-index", "--glass-index", "1.6", "-o", out)
+    result = invoke("fit", "cmos", bench_csv, "--fit-index", "--glass-index", "1.6", "-o", out)
     assert result.exit_code == 0, result.output
     parameters = json.loads(out.read_text())["parameters"]
     assert "glass_index" in parameters["fitted"]
     assert abs(parameters["glass_index"] - 1.52) < 5 * parameters["uncertainties"]["glass_index"] + 0.01
-    assert_user_error(run("fit", "cmos", bench_csv, "--glass-index", "0.5"), "--glass-index")
+    assert_user_error(invoke("fit", "cmos", bench_csv, "--glass-index", "0.5"), "--glass-index")

@@ -7,7 +7,6 @@ the simulated world afterwards (what a separate process would take with it).
 
 from __future__ import annotations
 
-import collections
 import csv
 import json
 import os
@@ -19,20 +18,19 @@ import time
 from pathlib import Path
 
 import pytest
-from typer.testing import CliRunner
 
 import bench.cli_runs as cli_runs
 from bench.campaign import load_campaign_file
 from bench.catalogue import Catalogue, CatalogueError
-from bench.cli import app
 from bench.plans import make_plan
 from bench.preflight import preflight
 from calibration.centroid import SpotFlag
 
+from clitools import ALL_METHODS, assert_user_error_text, flat, invoke, method_rows
+
 ROOT = Path(__file__).resolve().parents[2]
 SEED003 = ROOT / "examples" / "seed003.yaml"
 SUNBENCH = Path(sys.executable).with_name("sunbench")
-ALL_METHODS = ("seed003", "seed003-tilt", "seed003-sector", "physical")
 ENV = {**{k: v for k, v in os.environ.items() if k != "SUNBENCH_CATALOGUE"},
        "COLUMNS": "160", "NO_COLOR": "1", "TERM": "dumb"}
 
@@ -51,45 +49,10 @@ seed003:
   tilt_repeats: 1
 """
 
-runner = CliRunner(env={"COLUMNS": "160", "FORCE_COLOR": None, "NO_COLOR": "1", "TERM": "dumb"})
-
-pytestmark = pytest.mark.skipif(not SUNBENCH.exists(), reason=f"no console script {SUNBENCH}")
-
 
 def sunbench(*args, cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess:
     return subprocess.run([str(SUNBENCH), *map(str, args)], capture_output=True, text=True, env=ENV, cwd=cwd,
                           timeout=timeout)
-
-
-def invoke(*args):
-    result = runner.invoke(app, [str(a) for a in args])
-    assert result.exception is None or isinstance(result.exception, SystemExit), result.exception
-    return result
-
-
-def flat(text: str) -> str:
-    return " ".join(text.split())
-
-
-def assert_user_error(stderr: str, returncode: int, *fragments: str) -> str:
-    """Exit code 2, an error message naming the problem, no traceback."""
-    assert returncode == 2, (returncode, stderr)
-    assert stderr.startswith("error:"), stderr
-    assert "Traceback" not in stderr
-    message = flat(stderr)
-    for fragment in fragments:
-        assert fragment in message, (fragment, message)
-    return message
-
-
-def method_rows(stdout: str) -> dict[str, bool]:
-    """Method name → chosen ('*'), from the rows of the metrics table."""
-    rows = {}
-    for line in stdout.splitlines():
-        m = re.match(r"^\W*(seed003-tilt|seed003-sector|seed003|physical)( \*)?\s", line)
-        if m:
-            rows[m.group(1)] = bool(m.group(2))
-    return rows
 
 
 def runs_in(db: Path) -> list[dict]:
@@ -154,7 +117,7 @@ def test_a_bad_campaign_file_names_the_file_and_the_field(workdir, edit, fragmen
     path.write_text(yaml.safe_dump(document))
     db = workdir / "bad-campaign.sqlite"
     proc = sunbench("run", path, "--time-scale", 0, "--catalogue", db, cwd=workdir)
-    assert_user_error(proc.stderr, proc.returncode, str(path), *fragments)
+    assert_user_error_text(proc.stderr, proc.returncode, str(path), *fragments)
     assert proc.stdout == ""
     assert not db.exists() or runs_in(db) == []
 
@@ -170,7 +133,7 @@ def test_a_bad_bench_file_names_the_file_and_the_field(workdir, text, fragments)
     path.write_text(text)
     db = workdir / "bad-bench.sqlite"
     proc = sunbench("run", SEED003, "--bench", path, "--catalogue", db, cwd=workdir)
-    assert_user_error(proc.stderr, proc.returncode, str(path), *fragments)
+    assert_user_error_text(proc.stderr, proc.returncode, str(path), *fragments)
     assert not db.exists() or runs_in(db) == []
 
 
@@ -182,7 +145,7 @@ def test_a_campaign_beyond_the_soft_limits_is_refused_listing_every_violation(wo
     bench.write_text(LIMITED_BENCH)
     db = workdir / "limited.sqlite"
     proc = sunbench("run", SEED003, "--bench", bench, "--time-scale", 0, "--catalogue", db, cwd=workdir)
-    message = assert_user_error(proc.stderr, proc.returncode, "preflight refused the campaign")
+    message = assert_user_error_text(proc.stderr, proc.returncode, "preflight refused the campaign")
     # every grid point at 50° and 60° on the zenith stage, at each of the 8 azimuths, and nothing else
     expected = {(az, zen) for az in range(0, 360, 45) for zen in (50, 60)}
     listed = {(int(float(a)), int(float(z))) for a, z in
