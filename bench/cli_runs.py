@@ -18,10 +18,14 @@ from .campaign import load_campaign_file
 from .cli import _f, _user_errors, app, err, metrics_table, out
 from .datafile import write_bench_csv
 
-DEFAULT_CATALOGUE = Path(os.environ.get("XDG_DATA_HOME", Path.home() / ".local" / "share")) / "sunbench" / "catalogue.sqlite"
+# an empty XDG_DATA_HOME counts as unset, as the XDG spec says
+DEFAULT_CATALOGUE = (Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share")
+                     / "sunbench" / "catalogue.sqlite")
 
 CatalogueOption = typer.Option(None, "--catalogue", envvar="SUNBENCH_CATALOGUE",
-                               help=f"SQLite catalogue [default: {DEFAULT_CATALOGUE}].")
+                               help=f"SQLite catalogue (default: {DEFAULT_CATALOGUE}).")
+BenchOption = typer.Option(None, "--bench", "-b", help="Bench file (default: the simulated bench).")
+TimeScaleOption = typer.Option(None, "--time-scale", min=0.0, help="Simulated clock (0 = instant).")
 
 
 def _catalogue(path: Optional[Path], *, readonly: bool = False):
@@ -69,9 +73,9 @@ def _abort_on_signals(engine):
 @_user_errors
 def run_campaign_command(
     campaign_yaml: Path = typer.Argument(..., help="Campaign file (see examples/seed003.yaml)."),
-    bench: Optional[Path] = typer.Option(None, "--bench", "-b", help="Bench file [default: the simulated bench]."),
+    bench: Optional[Path] = BenchOption,
     catalogue: Optional[Path] = CatalogueOption,
-    time_scale: Optional[float] = typer.Option(None, "--time-scale", min=0.0, help="Simulated clock (0 = instant)."),
+    time_scale: Optional[float] = TimeScaleOption,
     dry_run: bool = typer.Option(False, "--dry-run", help="Only expand and check the plan."),
 ) -> None:
     """Run a calibration campaign; prints the run id alone on its last line (exit 1 if it did not complete)."""
@@ -162,9 +166,9 @@ def show_run(run_id: int = typer.Argument(...), catalogue: Optional[Path] = Cata
 @_user_errors
 def resume_command(
     run_id: int = typer.Argument(..., help="The interrupted run."),
-    bench: Optional[Path] = typer.Option(None, "--bench", "-b", help="Bench file [default: the simulated bench]."),
+    bench: Optional[Path] = BenchOption,
     catalogue: Optional[Path] = CatalogueOption,
-    time_scale: Optional[float] = typer.Option(None, "--time-scale", min=0.0, help="Simulated clock (0 = instant)."),
+    time_scale: Optional[float] = TimeScaleOption,
 ) -> None:
     """Start a new run linked to RUN that measures only the missing points; prints its id on the last line."""
     from .runner import continue_campaign, resume_run
@@ -196,7 +200,7 @@ def resume_command(
 def export_run(
     run_id: int = typer.Argument(...),
     format: str = typer.Option("csv", "--format", "-f", help="csv (the bench data CSV `sunbench fit` reads) or json."),
-    output: Optional[Path] = typer.Option(None, "--output", "-o", help="File to write [default: stdout]."),
+    output: Optional[Path] = typer.Option(None, "--output", "-o", help="File to write (default: stdout)."),
     catalogue: Optional[Path] = CatalogueOption,
 ) -> None:
     """Export a run (with the runs it resumed) as bench data CSV or as JSON."""
@@ -243,11 +247,11 @@ def fleet_command(campaign_id: int = typer.Argument(...), catalogue: Optional[Pa
 @app.command("serve")
 @_user_errors
 def serve_command(
-    bench: Optional[Path] = typer.Option(None, "--bench", "-b", help="Bench file [default: the simulated bench]."),
+    bench: Optional[Path] = BenchOption,
     catalogue: Optional[Path] = CatalogueOption,
     host: str = typer.Option("127.0.0.1", help="Interface to listen on (loopback only by default)."),
     port: int = typer.Option(8000, help="TCP port."),
-    time_scale: Optional[float] = typer.Option(None, "--time-scale", min=0.0, help="Simulated clock (0 = instant)."),
+    time_scale: Optional[float] = TimeScaleOption,
     public_read: bool = typer.Option(False, "--public-read", help="Let read-only views work without the token."),
 ) -> None:
     """Serve the bench's web API (OpenAPI at /docs); commands need the token printed at first start."""
