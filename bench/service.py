@@ -228,7 +228,7 @@ class BenchService:
         self._stop = threading.Event()
         self._status: dict = {"engine": {"state": EngineState.IDLE.value}, "updated_utc": None}
         self._frame: np.ndarray | None = None
-        self._frame_spot: dict | None = None
+        self._frame_spot: tuple[np.ndarray, dict] | None = None  # (frame, its spot), found when first asked for
         self._frame_size: dict | None = None  # width_px, height_px of the sensor's frames
         self._progress: dict = {}
         self._threads = [threading.Thread(target=self._worker, name="bench-worker", daemon=True),
@@ -295,7 +295,6 @@ class BenchService:
             self._frame = self.engine.last_frame
             self._status["table"] = {"azimuth_deg": event.data["azimuth_deg"],
                                      "zenith_deg": event.data["zenith_stage_deg"], "moving": False}
-            self._locate_spot()
         self._status["engine"] = {"state": self.engine.state.value, **self._progress}
         self.bus.publish(data)
 
@@ -351,7 +350,22 @@ class BenchService:
         return dict(self._status)
 
     def latest_frame(self) -> tuple[np.ndarray | None, dict | None]:
-        return self._frame, self._frame_spot
+        """The latest frame and its spot (``x_px, y_px, peak_dn``, or ``error`` naming the centroid's error).
+
+        The spot is found here, when a client asks, once per frame: not in the engine's thread for every
+        point, where nobody may be looking."""
+        frame, cached = self._frame, self._frame_spot
+        if frame is None:
+            return None, None
+        if cached is not None and cached[0] is frame:
+            return frame, cached[1]
+        try:
+            found = find_spot(frame, saturation_dn=self.session.engine.full_scale_dn)
+            spot = {"x_px": found.x_px, "y_px": found.y_px, "peak_dn": found.peak_dn}
+        except CentroidError as exc:
+            spot = {"error": type(exc).__name__}
+        self._frame_spot = (frame, spot)
+        return frame, spot
 
     def refresh_status(self) -> None:
         """Read the devices (only while no run owns the bench) into the cache."""
@@ -377,19 +391,7 @@ class BenchService:
         self._status.update(table=table, source=asdict(source), sensor=sensor, error=None,
                             engine={"state": self.engine.state.value, **self._progress},
                             updated_utc=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()))
-        self._locate_spot()
         self.bus.publish({"kind": "status", **{k: self._status[k] for k in ("table", "source", "sensor")}})
-
-    def _locate_spot(self) -> None:
-        frame = self._frame
-        if frame is None:
-            self._frame_spot = None
-            return
-        try:
-            spot = find_spot(frame, saturation_dn=self.session.engine.full_scale_dn)
-            self._frame_spot = {"x_px": spot.x_px, "y_px": spot.y_px, "peak_dn": spot.peak_dn}
-        except CentroidError as exc:
-            self._frame_spot = {"error": type(exc).__name__}
 
     def _poller(self) -> None:
         while not self._stop.wait(self.status_period_s):
