@@ -11,15 +11,15 @@ from __future__ import annotations
 import itertools
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from calibration.design import BenchGeometry, SensorDesign
-from calibration.pinhole import PinholeBuild
+from calibration.design import DEFAULT_SENSOR, BenchGeometry, SensorDesign
 
 from . import registry
 from .clock import SimClock
 from .lamp import LED, XENON
 from .motion import AxisSpec
+from .raytrace import SensorOptics
 from .world import SensorTruth, SimWorld
 
 
@@ -54,22 +54,52 @@ class GeometryConfig(_Strict):
 
 
 class BuildConfig(_Strict):
+    """The sensor's true build (:class:`drivers.sim.raytrace.SensorOptics`): what a calibration should recover.
+
+    The gap is the air path along the die's normal from the pinhole (the mid-plane of its mask) to the glass,
+    so gap + glass is the pinhole's height above the die wherever the glass lies."""
+
     x0_px: float = 325.8
     y0_px: float = 233.4
     gap_mm: float = Field(1.05, gt=0)
     glass_mm: float = Field(0.5, ge=0)
     glass_index: float = Field(1.52, ge=1)
+    glass_position: Literal["die", "mask"] = "die"  # cover glass on the die, or bonded under the mask
     tilt_x_deg: float = 0.22
     tilt_y_deg: float = -0.21
     rotation_deg: float = 1.4
     mirrored: bool = False
+    mask_thickness_mm: float = Field(0.01, ge=0)  # the hole is a short cylinder; 0 = a thin mask
+    wavelength_mm: float = Field(0.00065, ge=0)  # effective wavelength of the diffraction blur; 0 = none
+
+
+class DetectorConfig(_Strict):
+    """The detector (:class:`calibration.design.SensorDesign`): 640×480 px of 9.9 µm by default (seed 003)."""
+
+    width_px: int = Field(DEFAULT_SENSOR.width_px, gt=0)
+    height_px: int = Field(DEFAULT_SENSOR.height_px, gt=0)
+    pixel_pitch_mm: float = Field(DEFAULT_SENSOR.pixel_pitch_mm, gt=0)
+    bit_depth: int = Field(DEFAULT_SENSOR.bit_depth, gt=0, le=16)
 
 
 class SensorConfig(_Strict):
     serial: str = "SIM-0001"
     build: BuildConfig = BuildConfig()
-    aperture_ellipticity: float = Field(0.002, ge=0, lt=0.1)
+    detector: DetectorConfig = DetectorConfig()
+    hole_diameter_mm: float = Field(DEFAULT_SENSOR.hole_diameter_mm, gt=0)
+    aperture_ellipticity: float = Field(0.002, ge=0, lt=0.1)  # the hole's long axis is 1 + e times its short one
     aperture_axis_deg: float = 20.0
+
+    @model_validator(mode="after")
+    def _physical(self):
+        self.truth()  # the optics' own checks (a hole that ends in air above the glass, ...) at load time
+        return self
+
+    def truth(self) -> SensorTruth:
+        """The simulated sensor this section describes."""
+        design = SensorDesign(**self.detector.model_dump(), hole_diameter_mm=self.hole_diameter_mm)
+        return SensorTruth(build=SensorOptics(**self.build.model_dump()), design=design, serial=self.serial,
+                           aperture_ellipticity=self.aperture_ellipticity, aperture_axis_deg=self.aperture_axis_deg)
 
 
 class MountConfig(_Strict):
@@ -113,10 +143,7 @@ class SimBench:
     def __init__(self, config: SimBenchConfig | None = None, *, time_scale: float | None = None):
         self.config = config = config or SimBenchConfig()
         clock = SimClock(config.time_scale if time_scale is None else time_scale)
-        build = PinholeBuild(**config.sensor.build.model_dump())
-        truth = SensorTruth(build=build, design=SensorDesign(), serial=config.sensor.serial,
-                            aperture_ellipticity=config.sensor.aperture_ellipticity,
-                            aperture_axis_deg=config.sensor.aperture_axis_deg)
+        truth = config.sensor.truth()
         self.world = SimWorld(clock=clock, bench=BenchGeometry(**config.geometry.model_dump()), sensor=truth,
                               mount_tilt_x_deg=config.mount.tilt_x_deg, mount_tilt_y_deg=config.mount.tilt_y_deg,
                               lamp_spec=XENON if config.source == "xenon" else LED, seed=config.seed,

@@ -1,27 +1,26 @@
 """What the simulated CMOS pinhole sensor sees: a frame rendered from the world's truth.
 
-The spot lands where the sensor's true build puts the sun direction the table set (calibration.pinhole,
-the same forward model the physical calibration fits), including the slight stretch with azimuth of a
-non-round pinhole. Its shape is the pinhole's shadow (a disk of the hole's diameter: the mask is parallel to the
-pixels, so the shadow keeps its size at any incidence) blurred by the image of the 0.5° source, which
-stretches radially with incidence. Its brightness follows the lamp through the shutter, the exposure,
-the aperture's projected area (cos θ) and the pixels' angular response. The detector adds a bias, dark
-current, shot and read noise, hot and dead pixels, and clips at its 10-bit full scale.
+The spot is the simulator's own physics (:mod:`drivers.sim.raytrace`, which shares no code with the
+calibration models): the chief ray traced through the cover glass onto the tilted die, and around it the
+shadow of the finite, slightly non-round hole in a mask of some thickness, cast by the 0.5° source and
+blurred by diffraction. Its brightness follows the lamp through the shutter, the exposure, the aperture's
+projected area (cos θ) and the pixels' angular response (the hole's vignetting at oblique incidence is in
+the shadow itself). The detector adds a bias, dark current, shot and read noise, hot and dead pixels, and
+clips at its full scale; its size and pitch are the sensor design's.
 
 Speed: the background noise comes from a small pool of full frames drawn once per bench (shot noise of the
 dark level approximated by a Gaussian); only the spot's neighbourhood is drawn per frame, with Poisson
-noise. A 640×480 frame renders in about a millisecond.
+noise, and the noiseless spot is kept while the sun does not move (the repeated frames of one bench point).
+A 640×480 frame renders in about a millisecond.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
-from calibration.pinhole import detector_rotation, spot_from_direction
-
+from .raytrace import SpotPatch, spot_patch
 from .world import SimWorld
 
 
@@ -68,8 +67,7 @@ class DetectorSpec:
 class SpotRenderer:
     """Renders frames of one simulated sensor from its world (see the module docstring)."""
 
-    PATCH = 32  # px, side of the patch the spot is drawn in
-    SUPER = 4  # supersampling of the patch
+    SUPER = 2  # supersampling of the spot (antialiased: its centroid is within 0.002 px of the exact one)
 
     def __init__(self, world: SimWorld, spec: DetectorSpec = DetectorSpec()):
         self.world = world
@@ -85,42 +83,29 @@ class SpotRenderer:
         self.dead = picks[spec.hot_pixels:]
         self._rng = world.rng("shot-noise")
         self.counter = 0
+        self._last: tuple[tuple, SpotPatch] | None = None
 
     # -- geometry of the spot -----------------------------------------------------------------------------
-    def spot_centre(self) -> tuple[float, float, float, float, float]:
-        """Spot centre [px], the sun's body zenith and azimuth, and its incidence on the detector [°]."""
-        truth = self.world.sensor
+    def spot(self) -> tuple[SpotPatch | None, float, float]:
+        """The noiseless spot for the world's present state (None when the sun is behind the mask), with the
+        sun's body zenith and azimuth [°]."""
         zenith, azimuth = self.world.sun_direction_body()
-        x, y = spot_from_direction(zenith, azimuth, truth.optics, truth.design.pixel_pitch_mm)
-        m = detector_rotation(truth.build.tilt_x_deg, truth.build.tilt_y_deg, truth.build.rotation_deg)
-        s = np.array([np.sin(np.radians(zenith)) * np.cos(np.radians(azimuth)),
-                      np.sin(np.radians(zenith)) * np.sin(np.radians(azimuth)), np.cos(np.radians(zenith))])
-        incidence_det = np.degrees(np.arccos(np.clip((s @ m)[2], -1, 1)))
-        return float(x), float(y), float(zenith), float(azimuth), float(incidence_det)
+        if zenith >= 89:
+            return None, zenith, azimuth
+        optics = self.world.sensor.optics
+        key = (zenith, azimuth, optics, self.world.bench.source_diameter_deg)
+        if self._last is None or self._last[0] != key:
+            patch = spot_patch(zenith, azimuth, optics, source_diameter_deg=key[3], supersample=self.SUPER)
+            self._last = (key, patch)
+        return self._last[1], zenith, azimuth
 
-    def _spot_patch(self, x: float, y: float, zenith_deg: float, azimuth_deg: float) -> tuple[np.ndarray, int, int]:
-        """Unit-peak spot image on a PATCH×PATCH grid whose top-left pixel is (x0, y0)."""
-        truth = self.world.sensor
-        pitch = truth.design.pixel_pitch_mm
-        half = self.PATCH // 2
-        x0, y0 = int(np.floor(x)) - half, int(np.floor(y)) - half
-        n = self.PATCH * self.SUPER
-        coords = (np.arange(n) + 0.5) / self.SUPER - 0.5  # pixel-centre convention: pixel i spans i ± 0.5
-        gx = x0 + coords[None, :] - x
-        gy = y0 + coords[:, None] - y
-        radius = truth.design.hole_diameter_mm / 2 / pitch
-        disk = ((gx * gx + gy * gy) <= radius * radius).astype(np.float32)
-        # the 0.5° source blurs the shadow; the blur stretches radially as 1/cos²θ
-        height = truth.build.gap_mm + truth.build.glass_mm / truth.build.glass_index
-        sigma = 0.5 * np.radians(self.world.bench.source_diameter_deg / 2) * height / pitch
-        cos2 = np.cos(np.radians(zenith_deg)) ** 2
-        s_par, s_perp = sigma / cos2 * self.SUPER, sigma * self.SUPER
-        ang = np.radians(azimuth_deg)
-        blurred = cv2.GaussianBlur(disk, (0, 0), sigmaX=max(s_par * abs(np.cos(ang)) + s_perp * abs(np.sin(ang)), 0.3),
-                                   sigmaY=max(s_par * abs(np.sin(ang)) + s_perp * abs(np.cos(ang)), 0.3))
-        patch = blurred.reshape(self.PATCH, self.SUPER, self.PATCH, self.SUPER).mean(axis=(1, 3))
-        peak = patch.max()
-        return (patch / peak if peak > 0 else patch), x0, y0
+    def spot_centre(self) -> tuple[float, float, float, float, float]:
+        """Chief ray's spot [px], the sun's body zenith and azimuth, and its incidence on the die [°] (NaN for
+        the position and incidence when the sun is behind the mask)."""
+        patch, zenith, azimuth = self.spot()
+        if patch is None:
+            return np.nan, np.nan, zenith, azimuth, np.nan
+        return patch.chief_x_px, patch.chief_y_px, zenith, azimuth, patch.incidence_deg
 
     # -- one frame ------------------------------------------------------------------------------------------
     def render(self, exposure_ms: float) -> np.ndarray:
@@ -133,15 +118,26 @@ class SpotRenderer:
         img = self._pool[self.counter % len(self._pool)] * np.float32(sigma) + np.float32(dark)
         img.ravel()[self.hot] += spec.hot_factor * spec.dark_dn_per_ms * exposure_ms
         irradiance = self.world.irradiance()
-        x, y, zenith, azimuth, incidence = self.spot_centre()
-        if irradiance > 0 and incidence < 89:
-            patch, x0, y0 = self._spot_patch(x, y, zenith, azimuth)
-            response = np.cos(np.radians(zenith)) * np.cos(np.radians(incidence)) ** spec.pixel_response_power
-            signal = patch * (spec.signal_dn_per_ms * exposure_ms * irradiance * response)
-            electrons = self._rng.poisson(np.maximum(signal, 0) * spec.electrons_per_dn) / spec.electrons_per_dn
-            ys, xs = slice(max(y0, 0), min(y0 + self.PATCH, h)), slice(max(x0, 0), min(x0 + self.PATCH, w))
-            if ys.start < ys.stop and xs.start < xs.stop:
-                img[ys, xs] += electrons[ys.start - y0: ys.stop - y0, xs.start - x0: xs.stop - x0]
+        if irradiance > 0:
+            patch, zenith, _ = self.spot()
+            if patch is not None and patch.incidence_deg < 89:
+                self._add_spot(img, patch, zenith, exposure_ms * irradiance)
         img.ravel()[self.dead] = 0.0
         np.clip(img, 0, self.full_scale, out=img)
         return np.rint(img).astype(np.uint16)
+
+    def _add_spot(self, img: np.ndarray, patch: SpotPatch, zenith_deg: float, dose: float) -> None:
+        """Add the spot's photo-electrons (Poisson) to the frame, where it overlaps the frame."""
+        spec = self.spec
+        h, w = self.shape
+        side_y, side_x = patch.image.shape
+        x0, y0 = patch.x_origin_px, patch.y_origin_px
+        ys, xs = slice(max(y0, 0), min(y0 + side_y, h)), slice(max(x0, 0), min(x0 + side_x, w))
+        if ys.start >= ys.stop or xs.start >= xs.stop:
+            return
+        # the aperture's projected area (cos θ) and the pixels' angular response
+        response = np.cos(np.radians(zenith_deg)) * np.cos(np.radians(patch.incidence_deg)) ** spec.pixel_response_power
+        signal = patch.image[ys.start - y0: ys.stop - y0, xs.start - x0: xs.stop - x0] * (
+            spec.signal_dn_per_ms * dose * response)
+        electrons = self._rng.poisson(np.maximum(signal, 0) * spec.electrons_per_dn) / spec.electrons_per_dn
+        img[ys, xs] += electrons

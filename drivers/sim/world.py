@@ -2,15 +2,16 @@
 
 The world holds the clock, the bench geometry (offset zenith axis, source distance and size), the table's
 axes (their true mechanical angles), the sun simulator's lamp and shutter, and the sensor under test's
-true build. The sensor simulator asks it where the sun is in the sensor's body frame, so the spot in a
-captured frame moves exactly as the table did — including the table's zero offsets, backlash and the
-sensor's misalignment on its fixture, none of which a driver can see.
+true build (whose physics is the simulator's own, :mod:`drivers.sim.raytrace`, not the calibration's model).
+The sensor simulator asks it where the sun is in the sensor's body frame, so the spot in a captured frame
+moves exactly as the table did — including the table's zero offsets, backlash and the sensor's
+misalignment on its fixture, none of which a driver can see.
 
 Bench geometry (seed 003 §4.1, Fig. 4.5): the sensor sits on an azimuth stage that turns it about its
 boresight; that stage rides on a zenith stage whose axis is `lever_arm_mm` behind the sensor, facing a
 source `source_distance_mm` away — or, with the other axis order, on an alt-az mount. The sun direction
-is computed from the pose of the sensor along that chain, so for seed 003's order its zenith is eq. 8's
-incidence angle.
+is computed from the pose of the sensor along that chain (:func:`drivers.sim.raytrace.body_direction_from_stage`),
+so for seed 003's order its zenith is eq. 8's incidence angle.
 """
 
 from __future__ import annotations
@@ -18,35 +19,23 @@ from __future__ import annotations
 import dataclasses
 import zlib
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
 from calibration.design import DEFAULT_BENCH, DEFAULT_SENSOR, BenchGeometry, SensorDesign
-from calibration.geometry import zenith_azimuth_from_vector
-from calibration.pinhole import PinholeBuild, detector_rotation
-from calibration.synthetic import EXAMPLE_BUILD
 
 from .clock import SimClock
 from .lamp import XENON, LampModel, LampSpec
 from .motion import AxisModel, AxisSpec
+from .raytrace import AXIS_ORDERS, SensorOptics, body_direction_from_stage, stage_pose
 
-
-AXIS_ORDERS = ("azimuth-on-zenith", "zenith-on-azimuth")
-
-
-def _rot_x(deg: float) -> np.ndarray:
-    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def _rot_y(deg: float) -> np.ndarray:
-    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def _rot_z(deg: float) -> np.ndarray:
-    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+#: The default simulated sensor's build: realistic errors a calibration should recover (a cover glass on the
+#: die under a 1.05 mm air gap, the die tilted 0.3° and turned 1.4°, a 10 µm mask) and a 650 nm effective
+#: wavelength for the diffraction blur (a xenon arc seen by silicon).
+EXAMPLE_OPTICS = SensorOptics(x0_px=325.8, y0_px=233.4, gap_mm=1.05, glass_mm=0.5, glass_index=1.52,
+                              tilt_x_deg=0.22, tilt_y_deg=-0.21, rotation_deg=1.4, mask_thickness_mm=0.01,
+                              wavelength_mm=0.00065)
 
 
 @dataclass(frozen=True)
@@ -55,29 +44,32 @@ class SensorTruth:
 
     Attributes
     ----------
-    build : PinholeBuild
-        Pinhole offset, air gap, cover glass, detector tilt and rotation.
+    build : SensorOptics
+        Pinhole offset, air gap, cover glass and where it lies, die tilt and rotation, mask thickness; its
+        detector and hole fields are taken from `design` and the two aperture fields (see :attr:`optics`).
     design : SensorDesign
-        Detector size, pitch, bit depth.
+        Detector size, pitch, bit depth, hole diameter.
     aperture_ellipticity : float
-        Relative stretch of the spot offset with its azimuth on the detector, 1 + e cos 2(φ − φ_e): a slightly
-        non-round pinhole (seed 003 §4.5) [unitless].
+        A slightly non-round pinhole (seed 003 §4.5): its long axis is 1 + e times its short one [unitless].
     aperture_axis_deg : float
-        φ_e [°].
+        Direction of the long axis in the mask plane, from body +x [°].
     serial : str
     """
 
-    build: PinholeBuild = EXAMPLE_BUILD
+    build: SensorOptics = EXAMPLE_OPTICS
     design: SensorDesign = DEFAULT_SENSOR
     aperture_ellipticity: float = 0.002
     aperture_axis_deg: float = 20.0
     serial: str = "SIM-0001"
 
-    @property
-    def optics(self) -> PinholeBuild:
-        """The build with the non-round aperture as the pinhole model's stretch coefficients."""
-        e, axis = self.aperture_ellipticity, np.radians(2.0 * self.aperture_axis_deg)
-        return dataclasses.replace(self.build, aperture_c=e * np.cos(axis), aperture_s=e * np.sin(axis))
+    @cached_property
+    def optics(self) -> SensorOptics:
+        """The whole optics the ray trace needs: the build with the design's detector and hole."""
+        d = self.design
+        return dataclasses.replace(self.build, pixel_pitch_mm=d.pixel_pitch_mm, width_px=d.width_px,
+                                   height_px=d.height_px, hole_diameter_mm=d.hole_diameter_mm,
+                                   hole_axis_ratio=1.0 + self.aperture_ellipticity,
+                                   hole_axis_deg=self.aperture_axis_deg)
 
 
 @dataclass
@@ -137,40 +129,29 @@ class SimWorld:
         return az, omega
 
     def sensor_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        """Orientation R (columns: body axes in the lab) and position P [mm] of the sensor in the lab frame.
-
-        Lab frame: the source lies on +z at `lever_arm_mm + source_distance_mm` from the origin, where the
-        table's axes meet; at zero stage angles the sensor sits `lever_arm_mm` out along +z, facing the source.
-        ``azimuth-on-zenith`` (seed 003): the zenith stage turns about lab y and carries the azimuth stage, which
-        turns the sensor about its boresight. ``zenith-on-azimuth`` (an alt-az mount, seed 002): the azimuth
-        axis is the lab vertical (y) and carries the altitude axis (x).
-        """
+        """Orientation R (columns: body axes in the lab) and position P [mm] of the sensor in the lab frame
+        (:func:`drivers.sim.raytrace.stage_pose` at the table's true angles)."""
         az, omega = self.stage_true_deg()
-        az *= self.azimuth_sign
-        if self.axis_order == "azimuth-on-zenith":
-            rotation = _rot_y(-omega) @ _rot_z(-az)
-            position = _rot_y(-omega) @ np.array([0.0, 0.0, self.bench.lever_arm_mm])
-        else:
-            rotation = _rot_y(-az) @ _rot_x(omega)
-            position = rotation @ np.array([0.0, 0.0, self.bench.lever_arm_mm])
-        if self.mount_tilt_x_deg or self.mount_tilt_y_deg:
-            rotation = rotation @ detector_rotation(self.mount_tilt_x_deg, self.mount_tilt_y_deg, 0.0)
-        return rotation, position
+        return stage_pose(az, omega, lever_arm_mm=self.bench.lever_arm_mm, axis_order=self.axis_order,
+                          mount_tilt_x_deg=self.mount_tilt_x_deg, mount_tilt_y_deg=self.mount_tilt_y_deg,
+                          azimuth_sign=self.azimuth_sign)
 
     def sun_direction_body(self) -> tuple[float, float]:
         """True sun direction in the sensor body frame (zenith_deg, azimuth_deg), from the table's pose.
 
-        The direction from the sensor to the centre of the source, expressed in the body frame; for the
-        seed 003 axis order its zenith is eq. 8's incidence angle and its azimuth the azimuth stage's angle.
+        The direction from the sensor to the centre of the source, expressed in the body frame
+        (:func:`drivers.sim.raytrace.body_direction_from_stage` at the table's true angles); for the seed 003
+        axis order its zenith is eq. 8's incidence angle and its azimuth the azimuth stage's angle.
 
         References
         ----------
         seed 003, eq. 8 (incidence on a bench with an offset zenith axis) and eq. 12.
         """
-        rotation, position = self.sensor_pose()
-        source = np.array([0.0, 0.0, self.bench.lever_arm_mm + self.bench.source_distance_mm])
-        to_source = source - position
-        zenith, azimuth = zenith_azimuth_from_vector(rotation.T @ (to_source / np.linalg.norm(to_source)))
+        az, omega = self.stage_true_deg()
+        zenith, azimuth = body_direction_from_stage(
+            az, omega, lever_arm_mm=self.bench.lever_arm_mm, source_distance_mm=self.bench.source_distance_mm,
+            axis_order=self.axis_order, mount_tilt_x_deg=self.mount_tilt_x_deg,
+            mount_tilt_y_deg=self.mount_tilt_y_deg, azimuth_sign=self.azimuth_sign)
         return float(zenith), float(azimuth)
 
     def irradiance(self) -> float:
