@@ -309,6 +309,9 @@ class GeometryConfig(_Strict):
 
     lever_arm_mm: float = Field(DEFAULT_BENCH.lever_arm_mm, ge=0)
     source_distance_mm: float = Field(DEFAULT_BENCH.source_distance_mm, gt=0)
+    # 1σ of the two lengths as measured; the fit at a run's end combines them with what the spots say
+    lever_arm_sd_mm: float | None = Field(None, gt=0)
+    source_distance_sd_mm: float | None = Field(None, gt=0)
 
 
 class InterlocksConfig(_Strict):

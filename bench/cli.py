@@ -17,9 +17,10 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from calibration.design import DEFAULT_BENCH, BenchGeometry
+from calibration.design import DEFAULT_SENSOR, SensorDesign
 from calibration.errors import CalibrationError
-from calibration.evaluation import MethodReport, best_method, compare_methods
+from calibration.evaluation import CalibrationOutcome, MethodReport, StageFrames, calibrate
+from calibration.stage_geometry import GeometryPrior
 from calibration.export import c_header
 from calibration.models import METHODS, Calibration
 from calibration.models.physical import PhysicalCalibration
@@ -32,14 +33,14 @@ from .benchfile import BenchFile, BenchFileError, load_bench_file
 from .campaign import CampaignFileError
 from .catalogue import CatalogueError
 from .runner import PreflightRefused, ResumeRefused
-from .datafile import (DataFileError, calibration_document, read_bench_csv, read_calibration, read_spots_csv,
+from .datafile import (DataFileError, calibration_document, read_bench_frames, read_calibration, read_spots_csv,
                        write_applied_csv, write_bench_csv, write_calibration)
 
 app = typer.Typer(help="sunbench: sun-sensor calibration bench.", no_args_is_help=True, add_completion=False)
 fit_app = typer.Typer(help="Fit a calibration to bench data.", no_args_is_help=True)
 app.add_typer(fit_app, name="fit")
 
-out = Console()
+out = Console(width=None if sys.stdout.isatty() else 150)  # a pipe or a test gets whole tables
 err = Console(stderr=True)
 
 
@@ -77,22 +78,27 @@ def _f(value: float, digits: int = 3) -> str:
 
 
 def metrics_table(reports: list[MethodReport], chosen: str | None) -> Table:
-    """Seed 003 Table 4.1 columns for every method, held out and at the fitted nodes."""
+    """Seed 003 Table 4.1 columns for every method: held out (the worse of two schemes), and more."""
     notes: list[str] = []
-    table = Table(title="Accuracy held out (leave one azimuth out) [°]; * = chosen", title_justify="left")
+    table = Table(title="Accuracy held out [°] — the worse of leave-one-azimuth-out and leave-one-zenith-ring-out; "
+                        "* = chosen", title_justify="left")
     table.add_column("method", no_wrap=True)
-    for name in ("RMS zenith", "RMS azimuth", "RMS vector", "95 % (2×RMS)", "max vector", "RMS at nodes"):
+    for name in ("RMS zenith", "RMS azimuth", "RMS vector", "95 % (2×RMS)", "max vector", "azimuth out",
+                 "ring out", "RMS at nodes", "χ²/dof"):
         table.add_column(name, justify="right", max_width=9)
     for r in reports:
         label = r.method + (" *" if r.method == chosen else "")
         if r.calibration is None:
-            table.add_row(label, *["[dim]—[/]"] * 6)
+            table.add_row(label, *["[dim]—[/]"] * 9)
             notes.append(f"not fitted: {r.error}")
             continue
         h = r.heldout
         row = [_f(h.rms_zenith_deg, 4), _f(h.rms_azimuth_deg, 4), _f(h.rms_vector_deg, 4), _f(h.bound95_deg, 4),
                _f(h.max_vector_deg, 4)] if h else ["—"] * 5
-        table.add_row(label, *row, _f(r.fitted.rms_vector_deg, 4))
+        row += [_f(r.heldout_azimuth.rms_vector_deg, 4) if r.heldout_azimuth else "—",
+                _f(r.heldout_ring.rms_vector_deg, 4) if r.heldout_ring else "—"]
+        table.add_row(label, *row, _f(r.fitted.rms_vector_deg, 4),
+                      _f(r.chi2_dof, 1) if r.chi2_dof is not None else "—")
         if r.error:
             notes.append(f"{r.method}: {r.error}")
     table.caption = "\n".join(notes) or None
@@ -101,10 +107,12 @@ def metrics_table(reports: list[MethodReport], chosen: str | None) -> Table:
 
 
 def physical_table(cal: PhysicalCalibration, truth: PinholeBuild | None = None) -> Table:
-    table = Table(title="Physical model: fitted build", title_justify="left")
+    table = Table(title=f"Physical model: fitted build ({cal.method})", title_justify="left")
     for name in ("parameter", "fitted", "± 1σ") + (("truth",) if truth else ()):
         table.add_column(name, justify="left" if name == "parameter" else "right")
     for name in cal.fitted:
+        if not hasattr(cal, name):
+            continue  # a bench-geometry parameter: in the geometry table
         row = [name, f"{getattr(cal, name):.5f}", f"{cal.uncertainties[name]:.5f}"]
         if truth:
             row.append(f"{getattr(truth, name):.5f}")
@@ -112,15 +120,50 @@ def physical_table(cal: PhysicalCalibration, truth: PinholeBuild | None = None) 
     return table
 
 
-def _fit_and_report(data, method: Optional[str], fit_options=None) -> tuple[Calibration, list[MethodReport]]:
+def geometry_table(geometry: dict) -> Table:
+    table = Table(title="Bench geometry (from the stage angles)", title_justify="left")
+    for name in ("quantity", "value", "± 1σ", "from"):
+        table.add_column(name, justify="left" if name in ("quantity", "from") else "right")
+    for name, entry in geometry.items():
+        value, sd = entry["value"], entry["sd"]
+        table.add_row(name, "—" if value is None else f"{value:.6g}", "—" if sd is None else f"{sd:.3g}",
+                      entry["source"])
+    return table
+
+
+def print_outcome(outcome: CalibrationOutcome, chosen: str) -> None:
+    """The rejected frames, the bench geometry and the warnings of a calibration, for the terminal."""
+    if outcome.geometry is not None:
+        out.print(geometry_table(outcome.geometry))
+    quality = outcome.quality()
+    scatter = quality["repeat_scatter_px"]
+    chi2 = next(r.chi2_dof for r in outcome.reports if r.method == chosen)
+    out.print(f"{quality['frames']} frames at {quality['directions']} directions; repeat scatter "
+              + (f"{scatter:.4f} px per frame; {chosen}: χ²/dof = {_f(chi2 if chi2 is not None else float('nan'), 2)}"
+                 if scatter is not None else "unknown (no repeats)"), highlight=False)
+    if outcome.rejected:
+        out.print(f"[bold]{len(outcome.rejected)} rejected frame(s)[/] (left out of every fit):", highlight=False)
+        for r in outcome.rejected:
+            out.print("  " + escape(r.describe()), highlight=False)
+    for w in outcome.warnings:
+        out.print(f"[bold yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
+
+
+def _fit_and_report(data, method: Optional[str], fit_options=None, *, design: SensorDesign = DEFAULT_SENSOR,
+                    stage: StageFrames | None = None) -> tuple[Calibration, CalibrationOutcome]:
     with err.status("fitting and cross-validating every method…"):
-        reports = compare_methods(data, fit_options=fit_options)
-    chosen = best_method(reports).method if method is None else method
-    report = next(r for r in reports if r.method == chosen)
+        outcome = calibrate(data, fit_options=fit_options, design=design, stage=stage)
+    chosen = outcome.chosen.method if method is None else method
+    report = next(r for r in outcome.reports if r.method == chosen)
     if report.calibration is None:
         raise CalibrationError(f"method {chosen} could not be fitted: {report.error}")
-    out.print(metrics_table(reports, chosen))
-    return report.calibration, reports
+    out.print(metrics_table(outcome.reports, chosen))
+    return report.calibration, outcome
+
+
+def _option_or(metadata: dict, name: str, option):
+    """An option wins over the CSV's header comment; None when neither gives it."""
+    return option if option is not None else metadata.get(name)
 
 
 @fit_app.command("cmos")
@@ -132,39 +175,71 @@ def fit_cmos(
     output: Optional[Path] = typer.Option(None, "--output", "-o", help="Write the calibration JSON here."),
     header: Optional[Path] = typer.Option(None, "--header", help="Also write a C header for the sensor's MCU."),
     sensor: Optional[str] = typer.Option(None, "--sensor", help="Fit this sensor_id of a multi-sensor file."),
-    lever_arm_mm: float = typer.Option(DEFAULT_BENCH.lever_arm_mm, help="Stage angles only: axis-to-sensor "
-                                                                        "distance d of seed 003 eq. 8 [mm]."),
-    source_distance_mm: float = typer.Option(DEFAULT_BENCH.source_distance_mm,
-                                             help="Stage angles only: sensor-to-simulator distance L [mm]."),
-    glass_index: float = typer.Option(1.52, help="physical: refractive index of the glass between pinhole and "
-                                                 "pixels (BK7/D263 1.52, sapphire 1.77, fused silica 1.46)."),
+    lever_arm_mm: Optional[float] = typer.Option(None, help="Stage angles: axis-to-sensor distance d of seed 003 "
+                                                            "eq. 8 [mm], as measured (fitted with it)."),
+    lever_arm_sd_mm: Optional[float] = typer.Option(None, help="1σ of --lever-arm-mm [mm] (default 0.5 %)."),
+    source_distance_mm: Optional[float] = typer.Option(None, help="Stage angles: sensor-to-simulator distance L "
+                                                                  "[mm], as measured (fitted with it)."),
+    source_distance_sd_mm: Optional[float] = typer.Option(None, help="1σ of --source-distance-mm [mm] (default 0.5 %)."),
+    mount_tilt_x_deg: Optional[float] = typer.Option(None, help="Stage angles: the sensor's tilt on its fixture "
+                                                                "toward azimuth 0° [°], if measured (default 0)."),
+    mount_tilt_y_deg: Optional[float] = typer.Option(None, help="The same toward azimuth 90° [°]."),
+    pixel_pitch_mm: Optional[float] = typer.Option(None, help="Detector pixel pitch [mm] (default: the CSV's "
+                                                              "header comment, else seed 003's 0.0099)."),
+    width_px: Optional[int] = typer.Option(None, help="Detector width [px] (default 640)."),
+    height_px: Optional[int] = typer.Option(None, help="Detector height [px] (default 480)."),
+    pinhole_height_mm: Optional[float] = typer.Option(None, help="Nominal pinhole height L [mm] (the fit's start)."),
+    glass_index: Optional[float] = typer.Option(None, help="physical: refractive index of the glass between pinhole "
+                                                           "and pixels (BK7/D263 1.52, sapphire 1.77, fused silica 1.46)."),
     fit_index: bool = typer.Option(False, "--fit-index", help="physical: fit the glass index too (it is "
                                                               "strongly correlated with the thickness)."),
 ) -> None:
     """Fit a CMOS pinhole sensor's calibration; print the accuracy of every method side by side."""
     if method is not None and method not in METHODS:
         raise CalibrationError(f"--method must be one of {', '.join(METHODS)}, got {method!r}")
+    frames = read_bench_frames(data_csv, sensor_id=sensor)
+    meta = frames.metadata
+    glass_index = _option_or(meta, "glass_index", glass_index) or 1.52
     if not 1.0 <= glass_index <= 3.0:
         raise CalibrationError(f"--glass-index must lie in [1, 3], got {glass_index}")
+    given = {name: _option_or(meta, name, value) for name, value in (
+        ("pixel_pitch_mm", pixel_pitch_mm), ("width_px", width_px), ("height_px", height_px),
+        ("pinhole_height_mm", pinhole_height_mm))}
     try:
-        bench = BenchGeometry(lever_arm_mm=lever_arm_mm, source_distance_mm=source_distance_mm)
+        design = SensorDesign(**{**DEFAULT_SENSOR.to_dict(), **{k: (int(v) if k.endswith("_px") else v)
+                                                                  for k, v in given.items() if v is not None}})
     except ValueError as exc:
         raise CalibrationError(str(exc)) from None
-    data = read_bench_csv(data_csv, bench=bench, sensor_id=sensor)
+    prior = GeometryPrior(  # validated even when the file has true angles: a bad option is an error
+        lever_arm_mm=_option_or(meta, "lever_arm_mm", lever_arm_mm),
+        lever_arm_sd_mm=_option_or(meta, "lever_arm_sd_mm", lever_arm_sd_mm),
+        source_distance_mm=_option_or(meta, "source_distance_mm", source_distance_mm),
+        source_distance_sd_mm=_option_or(meta, "source_distance_sd_mm", source_distance_sd_mm),
+        mount_tilt_x_deg=_option_or(meta, "mount_tilt_x_deg", mount_tilt_x_deg) or 0.0,
+        mount_tilt_y_deg=_option_or(meta, "mount_tilt_y_deg", mount_tilt_y_deg) or 0.0)
+    stage = None if frames.stage is None else StageFrames(frames.stage[0], frames.stage[1], prior)
+    data = frames.data
     try:
-        calibration, reports = _fit_and_report(
-            data, method, {"physical": {"glass_index": glass_index, "fit_index": fit_index}})
+        calibration, outcome = _fit_and_report(
+            data, method, {"physical": {"glass_index": glass_index, "fit_index": fit_index}}, design=design,
+            stage=stage)
     except CalibrationError as exc:
         raise DataFileError(data_csv, str(exc), column=getattr(exc, "column", None)) from None
     if isinstance(calibration, PhysicalCalibration):
         out.print(physical_table(calibration))
-    out.print(f"{len(data)} points from {escape(str(data_csv))}; method [bold]{calibration.method}[/]")
+    print_outcome(outcome, calibration.method)
+    if given["pixel_pitch_mm"] is None:
+        out.print(f"[yellow]note:[/] pixel pitch not given (--pixel-pitch-mm or '# pixel_pitch_mm: …' in the CSV); "
+                  f"assumed seed 003's {DEFAULT_SENSOR.pixel_pitch_mm * 1000:g} µm — the gap and the glass scale "
+                  "with it, the angles do not", highlight=False)
+    out.print(f"{len(data)} frames from {escape(str(data_csv))}; method [bold]{calibration.method}[/]")
     if output:
-        write_calibration(output, calibration_document(calibration, sensor_id=data.sensor_id, source=str(data_csv),
-                                                       reports=reports, software=f"sunbench {_version()}"))
+        write_calibration(output, calibration_document(
+            calibration, sensor_id=data.sensor_id, source=str(data_csv), reports=outcome.reports,
+            software=f"sunbench {_version()}", outcome=outcome, design=design))
         out.print(f"calibration written to {escape(str(output))}")
     if header:
-        _write_text(header, c_header(calibration, sensor_id=data.sensor_id))
+        _write_text(header, c_header(calibration, sensor_id=data.sensor_id, design=design))
         out.print(f"C header written to {escape(str(header))}")
 
 
@@ -215,14 +290,16 @@ def demo(
               f"{truth.gap_mm} mm over {truth.glass_mm} mm of glass (n = {truth.glass_index}), detector tilt "
               f"α = {truth.tilt_x_deg}°, β = {truth.tilt_y_deg}°, rotation {truth.rotation_deg}°; "
               f"seed 003 grid, {len(data)} frames, centroid noise {noise_px} px.")
-    calibration, reports = _fit_and_report(data, None)
+    calibration, outcome = _fit_and_report(data, None)
     if isinstance(calibration, PhysicalCalibration):
         out.print(physical_table(calibration, truth))
+    print_outcome(outcome, calibration.method)
     if output_dir:
         write_bench_csv(output_dir / "bench-data.csv", data)
         write_calibration(output_dir / "calibration.json",
                           calibration_document(calibration, sensor_id=data.sensor_id, source="sunbench demo",
-                                               reports=reports, software=f"sunbench {_version()}"))
+                                               reports=outcome.reports, software=f"sunbench {_version()}",
+                                               outcome=outcome, design=DEFAULT_SENSOR))
         _write_text(output_dir / "calibration.h", c_header(calibration, sensor_id=data.sensor_id))
         out.print(f"bench data, calibration and C header written to {escape(str(output_dir))}/")
 

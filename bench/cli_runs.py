@@ -86,8 +86,14 @@ def run_campaign_command(
         session = _session(bench, cat, time_scale)
         try:
             report = check_campaign(campaign, session)
-            out.print(f"preflight: {len(report.points)} points, {report.n_frames} frames, {report.n_moves} moves per "
-                      f"sensor × {len(campaign.sensors)} sensor(s); about {report.duration_s / 60:.1f} min on the bench")
+            bound = "at most " if report.upper_bound else ""
+            warmup = report.warmup_s * len(campaign.sensors)  # check_campaign scales the whole estimate
+            out.print(f"preflight: {bound}{len(report.points)} points, {report.n_frames} frames, "
+                      f"{report.n_moves} moves per sensor × {len(campaign.sensors)} sensor(s); {bound or 'about '}"
+                      f"{report.duration_s / 60:.1f} min on the bench"
+                      + (f" (of which {warmup / 60:.1f} min lamp warm-up)" if warmup > 0 else ""))
+            if report.upper_bound:
+                out.print(f"  upper bounds, every point counted: {escape(report.upper_bound)}")
             if not report.ok:
                 raise PreflightRefused(report.violations)
             if dry_run:
@@ -151,15 +157,41 @@ def show_run(run_id: int = typer.Argument(...), catalogue: Optional[Path] = Cata
             value = cat.run_value(run_id, key)
             if value is not None:
                 out.print(f"{key}: {escape(json.dumps(value))}")
-        reports, chosen = [], None
+        reports, chosen, document = [], None, {}
+        metrics = lambda m, key: AccuracyMetrics(**m[key]) if m.get(key) else None  # noqa: E731
         for c in cat.calibrations(run_id):
             m = c["metrics"]
-            fitted = AccuracyMetrics(**m["fitted"]) if m.get("fitted") else None
-            heldout = AccuracyMetrics(**m["heldout"]) if m.get("heldout") else None
-            reports.append(MethodReport(c["method"], object(), fitted, heldout, m.get("error")))
-            chosen = c["method"] if c["chosen"] else chosen
+            heldout, by_azimuth, by_ring = metrics(m, "heldout"), metrics(m, "heldout_azimuth"), metrics(m, "heldout_ring")
+            if m.get("heldout_scheme") == "ring":
+                heldout = by_ring
+            elif m.get("heldout_scheme") == "azimuth":
+                heldout = by_azimuth
+            reports.append(MethodReport(c["method"], object(), metrics(m, "fitted"), heldout, m.get("error"),
+                                        by_azimuth, by_ring, m.get("chi2_dof")))
+            if c["chosen"]:
+                chosen, document = c["method"], c["document"]
         if reports:
             out.print(metrics_table(reports, chosen))
+        print_quality(document)
+
+
+def print_quality(document: dict) -> None:
+    """The chosen calibration's residual against the repeat scatter, its rejected frames and its warnings."""
+    quality = document.get("quality")
+    if quality:
+        scatter, chi2 = quality.get("repeat_scatter_px"), quality.get("chi2_dof")
+        out.print(f"{quality.get('frames')} frames at {quality.get('directions')} directions; repeat scatter "
+                  + (f"{scatter:.4f} px per frame" if scatter is not None else "unknown (no repeats)")
+                  + (f"; χ²/dof = {chi2:.2f}" if chi2 is not None else ""), highlight=False)
+    rejected = document.get("rejected") or []
+    if rejected:
+        out.print(f"[bold]{len(rejected)} rejected frame(s)[/] (left out of every fit):", highlight=False)
+        for r in rejected:
+            where = f"reading {r['row']}" if r.get("row") is not None else "a frame"
+            out.print(f"  {where} (zenith {r['zenith_deg']:.3f}°, azimuth {r['azimuth_deg']:.3f}°): "
+                      f"{r['offset_px']:.2f} px off; {escape(r['reason'])}", highlight=False)
+    for warning in (quality or {}).get("warnings", []):
+        out.print(f"[bold yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
 
 
 @app.command("resume")

@@ -10,7 +10,8 @@ import csv
 import datetime as dt
 import json
 import math
-from dataclasses import dataclass
+import re
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,8 @@ from calibration.design import BenchGeometry
 from calibration.errors import BenchDataError, CalibrationFormatError
 from calibration.geometry import incidence_from_stage_angle
 from calibration.models import Calibration, calibration_from_dict
+
+_METADATA = re.compile(r"^\s*#\s*(?P<key>[A-Za-z_][A-Za-z0-9_]*)\s*[:=]\s*(?P<value>.+)$")
 
 TRUE_COLUMNS = ("zenith_deg", "azimuth_deg")
 STAGE_COLUMNS = ("stage_zenith_deg", "stage_azimuth_deg")
@@ -46,6 +49,8 @@ class DataFileError(Exception):
         where = [self.path]
         if row is not None:
             where.append(f"row {row}" + (f" (line {line})" if line is not None else ""))
+        elif line is not None:
+            where.append(f"line {line}")
         if column is not None:
             where.append(f"column '{column}'")
         super().__init__(", ".join(where) + ": " + message)
@@ -53,12 +58,14 @@ class DataFileError(Exception):
 
 @dataclass(frozen=True)
 class CsvTable:
-    """Cells of a CSV file by column, with the file line of every data row."""
+    """Cells of a CSV file by column, with the file line of every data row, and the ``# key: value`` (or
+    ``# key = value``) comments above the header."""
 
     path: str
     header: list[str]
     rows: list[list[str]]
     lines: list[int]
+    metadata: dict = field(default_factory=dict)
 
     def has(self, column: str) -> bool:
         return column in self.header
@@ -99,10 +106,15 @@ def read_csv_table(path) -> CsvTable:
         raise DataFileError(path, "not a text (UTF-8) file") from None
     except OSError as exc:
         raise DataFileError(path, f"cannot read ({exc.strerror})") from None
-    header, rows, lines = None, [], []
+    header, rows, lines, metadata = None, [], [], {}
     reader = csv.reader(text.splitlines())
     try:
         for cells in reader:
+            if cells and cells[0].lstrip().startswith("#") and header is None:
+                match = _METADATA.match(",".join(cells))
+                if match:
+                    metadata[match["key"]] = (match["value"].strip(), reader.line_num)
+                continue
             if not cells or not "".join(cells).strip() or cells[0].lstrip().startswith("#"):
                 continue
             if header is None:
@@ -121,7 +133,7 @@ def read_csv_table(path) -> CsvTable:
         raise DataFileError(path, f"malformed CSV ({exc})", line=reader.line_num) from None
     if header is None:
         raise DataFileError(path, "empty file: no header row")
-    return CsvTable(str(path), header, rows, lines)
+    return CsvTable(str(path), header, rows, lines, metadata)
 
 
 def _require(table: CsvTable, columns) -> None:
@@ -180,13 +192,71 @@ def read_bench_csv(path, *, bench: BenchGeometry | None = None, sensor_id: str |
     zen_column = "stage_zenith_deg" if stage else "zenith_deg"
     try:
         data = BenchData(zenith, azimuth, x, y, repeat=optional["repeat"], sensor_id=sensor_id,
-                         exposure_ms=optional["exposure_ms"])
+                         exposure_ms=optional["exposure_ms"], frame_id=np.arange(1, len(table.rows) + 1))
     except BenchDataError as exc:
         row = None if exc.row is None else exc.row + 1
         column = zen_column if exc.column == "zenith_deg" else exc.column
         raise DataFileError(table.path, str(exc), row=row, line=None if row is None else table.lines[row - 1],
                             column=column) from None
     return data.subset(keep) if not keep.all() else data
+
+
+#: Header comments a bench data CSV may carry: the sensor's design and the bench's geometry (README).
+DESIGN_KEYS = ("width_px", "height_px", "pixel_pitch_mm", "pinhole_height_mm", "hole_diameter_mm", "bit_depth",
+               "fov_half_deg")
+GEOMETRY_KEYS = ("lever_arm_mm", "lever_arm_sd_mm", "source_distance_mm", "source_distance_sd_mm",
+                 "mount_tilt_x_deg", "mount_tilt_y_deg")
+OTHER_KEYS = ("glass_index",)
+
+
+@dataclass(frozen=True)
+class BenchFrames:
+    """A bench data CSV as frames, with what its header comments say.
+
+    Attributes
+    ----------
+    data : BenchData
+        One point per frame; `frame_id` is the data row (1-based). For stage angles the directions are
+        placeholders that only group the repeats (|Ω| and the stage azimuth).
+    stage : (azimuth_deg, zenith_deg) or None
+        The stage angles, when the file gives them instead of true angles.
+    metadata : dict
+        Numbers from ``# key: value`` comments (:data:`DESIGN_KEYS`, :data:`GEOMETRY_KEYS`, :data:`OTHER_KEYS`).
+    """
+
+    data: BenchData
+    stage: tuple | None
+    metadata: dict
+
+
+def read_bench_frames(path, *, sensor_id: str | None = None) -> BenchFrames:
+    """Read a bench data CSV without converting stage angles: the bench geometry is fitted, never assumed.
+
+    Header comments such as ``# pixel_pitch_mm: 0.0053`` or ``# source_distance_mm = 7100`` are read as numbers;
+    an unknown key or a value that is not a number raises :class:`DataFileError` naming the line.
+    """
+    table = read_csv_table(path)
+    metadata = {}
+    known = DESIGN_KEYS + GEOMETRY_KEYS + OTHER_KEYS
+    for key, (value, line) in table.metadata.items():
+        if key not in known:
+            raise DataFileError(table.path, f"unknown header comment {key!r}; known: {', '.join(known)}", line=line)
+        try:
+            number = float(value)
+        except ValueError:
+            raise DataFileError(table.path, f"header comment {key}: {value!r} is not a number", line=line) from None
+        if not math.isfinite(number):
+            raise DataFileError(table.path, f"header comment {key}: {value!r} is not a finite number", line=line)
+        metadata[key] = number
+    stage = not all(table.has(c) for c in TRUE_COLUMNS)
+    if not stage:
+        return BenchFrames(read_bench_csv(path, sensor_id=sensor_id), None, metadata)
+    # stage angles: group by the readings; |Ω| with the far side's azimuth keeps a direction's repeats together
+    placeholder = BenchGeometry(lever_arm_mm=0.0, source_distance_mm=1.0)
+    data = read_bench_csv(path, bench=placeholder, sensor_id=sensor_id)
+    table_rows = data.frame_id - 1
+    omega, stage_az = table.numbers("stage_zenith_deg")[table_rows], table.numbers("stage_azimuth_deg")[table_rows]
+    return BenchFrames(data, (stage_az, omega), metadata)
 
 
 def write_bench_csv(path, data: BenchData) -> None:
@@ -234,8 +304,15 @@ def write_applied_csv(path, table: CsvTable, zenith_deg, azimuth_deg) -> None:
 
 
 def calibration_document(calibration: Calibration, *, sensor_id: str | None, source: str | None,
-                         reports=None, software: str | None = None) -> dict:
-    """The calibration JSON: the versioned model document plus provenance and the metrics table."""
+                         reports=None, software: str | None = None, outcome=None, design=None) -> dict:
+    """The calibration JSON: the versioned model document plus provenance and the metrics table.
+
+    With the :class:`~calibration.evaluation.CalibrationOutcome` it also holds the sensor's design, the quality
+    (χ²/dof against the repeat scatter, warnings in words), every rejected frame, the bench geometry of
+    stage-angle data and the 1σ pointing-uncertainty map of a physical calibration.
+    """
+    from calibration.uncertainty import uncertainty_document
+
     document = calibration.to_dict()
     document.update({
         "sensor_id": sensor_id,
@@ -245,6 +322,20 @@ def calibration_document(calibration: Calibration, *, sensor_id: str | None, sou
     })
     if reports:
         document["metrics"] = {r.method: r.to_dict() for r in reports}
+    if design is not None:
+        document["design"] = design.to_dict()
+    if outcome is not None:
+        quality = outcome.quality()
+        if outcome.chosen.calibration is not calibration:  # a method asked for by name: its own figures
+            mine = next((r for r in outcome.reports if r.calibration is calibration), None)
+            quality["chi2_dof"] = mine.chi2_dof if mine else None
+        document["quality"] = quality
+        document["rejected"] = [r.to_dict() for r in outcome.rejected]
+        if outcome.geometry is not None:
+            document["bench_geometry"] = outcome.geometry
+    uncertainty = uncertainty_document(calibration)
+    if uncertainty is not None:
+        document["uncertainty_map"] = uncertainty
     return document
 
 

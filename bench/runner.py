@@ -14,11 +14,14 @@ import numpy as np
 
 from calibration.centroid import SpotFlag
 from calibration.data import BenchData
-from calibration.evaluation import best_method, compare_methods
+from calibration.design import DEFAULT_SENSOR
+from calibration.evaluation import StageFrames, calibrate
+from calibration.stage_geometry import GeometryPrior
 from .campaign import Campaign
+from .datafile import calibration_document
 from .engine import Interlocks, RunEngine
-from .plans import alignment_violations, make_plan
-from .preflight import PreflightReport, TimingModel, preflight
+from .plans import alignment_violations, make_plan, procedure_auto_exposure
+from .preflight import PreflightReport, TimingModel, preflight, timing_from_table
 
 
 class ResumeRefused(Exception):
@@ -74,17 +77,19 @@ def open_session(bench_file, catalogue, *, time_scale: float | None = None, ask=
 def timing_model(session: Session) -> TimingModel:
     sim = session.devices.sim
     if sim is None:
-        return TimingModel()
+        return timing_from_table(session.devices.table)  # the axes' speeds as the table reports them
     axis = sim.config.zenith_axis  # a simulated bench estimates what the same bench would take in real time
-    return TimingModel(rate_deg_s=axis.max_rate_deg_s, accel_deg_s2=axis.accel_deg_s2, settle_s=axis.settle_s,
-                       warmup_s=sim.world.lamp.spec.warm_time_s)
+    return timing_from_table(session.devices.table, TimingModel(
+        rate_deg_s=axis.max_rate_deg_s, accel_deg_s2=axis.accel_deg_s2, settle_s=axis.settle_s,
+        warmup_s=sim.world.lamp.spec.warm_time_s))
 
 
 def check_campaign(campaign: Campaign, session: Session) -> PreflightReport:
     """Expand the campaign's plan, check every move and the alignment, count the points, estimate the time."""
     geometry = session.bench_file.bench_geometry()
-    report = preflight(make_plan(campaign), check=session.devices.table.check, timing=timing_model(session),
-                       dry_peak_dn=campaign.seed003.auto_exposure.target_peak_fraction * 1023.0,
+    timing = timing_model(session)
+    report = preflight(make_plan(campaign, timing=timing), check=session.devices.table.check, timing=timing,
+                       dry_peak_dn=procedure_auto_exposure(campaign).target_peak_fraction * 1023.0,
                        extra_violations=alignment_violations(campaign.alignment, geometry))
     return dataclasses.replace(report, duration_s=report.duration_s * len(campaign.sensors))
 
@@ -105,25 +110,45 @@ def bench_data(catalogue, run_ids, *, sensor_id: str | None = None) -> BenchData
     column = lambda name: np.array([r[name] for r in rows], dtype=float)  # noqa: E731
     return BenchData(column("zenith_deg"), column("azimuth_body_deg"), column("x_px"), column("y_px"),
                      repeat=np.array([r["repeat"] for r in rows]), sensor_id=sensor_id,
-                     exposure_ms=column("exposure_ms"))
+                     exposure_ms=column("exposure_ms"), frame_id=np.array([r["id"] for r in rows]))
 
 
-def fit_run(catalogue, run_id: int, methods) -> list:
-    """Fit every method to the run's lineage; keep each calibration, the best held-out one as chosen."""
+def fit_run(catalogue, run_id: int, methods, design=None, geometry: GeometryPrior | None = None) -> list:
+    """Fit every method to the run's lineage; keep each calibration, the best held-out one as chosen.
+
+    Repeats are combined robustly and the rejected frames named (by reading id) in every calibration document,
+    with the quality (χ²/dof against the repeat scatter) and its warnings, which also go to the run's journal.
+    With `geometry` (what the bench file says of the lever arm and the source distance, with their 1σ) the
+    bench geometry is fitted jointly from the recorded stage angles instead of taken as the bench believes it.
+    """
+    design = design or DEFAULT_SENSOR
     run = catalogue.run(run_id)
-    data = bench_data(catalogue, catalogue.lineage(run_id), sensor_id=run["sensor_id"])
-    reports = compare_methods(data, methods=list(methods))
-    chosen = best_method(reports)
-    for report in reports:
+    lineage = catalogue.lineage(run_id)
+    data = bench_data(catalogue, lineage, sensor_id=run["sensor_id"])
+    stage = None
+    if geometry is not None:
+        rows = {r["id"]: r for r in catalogue.readings(lineage)}
+        stage = StageFrames(np.array([rows[i]["azimuth_deg"] for i in data.frame_id], dtype=float),
+                            np.array([rows[i]["zenith_stage_deg"] for i in data.frame_id], dtype=float), geometry)
+    outcome = calibrate(data, methods=list(methods), design=design, stage=stage)
+    chosen = outcome.chosen
+    for report in outcome.reports:
         if report.calibration is None:
             continue
-        document = report.calibration.to_dict()
-        document.update({"sensor_id": run["sensor_id"], "source": f"run {run_id}", "software": software_version()})
+        document = calibration_document(report.calibration, sensor_id=run["sensor_id"], source=f"run {run_id}",
+                                        software=software_version(), outcome=outcome, design=design)
+        document.pop("created_utc", None)  # the catalogue stamps its own time
         catalogue.add_calibration(run_id, report.method, document, report.to_dict(), report is chosen)
     catalogue.log_event(run_id, "fit", f"fitted {len(data)} frames; chosen {chosen.method}, held-out vector RMS "
                                        f"{chosen.heldout.rms_vector_deg:.4f}°" if chosen.heldout else
                         f"fitted {len(data)} frames; chosen {chosen.method}")
-    return reports
+    if outcome.rejected:
+        catalogue.log_event(run_id, "fit", f"{len(outcome.rejected)} frame(s) rejected: "
+                            + "; ".join(r.describe() for r in outcome.rejected[:10])
+                            + (" …" if len(outcome.rejected) > 10 else ""))
+    for warning in outcome.warnings:
+        catalogue.log_event(run_id, "fit", f"warning: {warning}")
+    return outcome.reports
 
 
 def _provenance(session: Session, campaign: Campaign, sensor_id: str) -> dict:
@@ -197,8 +222,26 @@ def _execute(session: Session, campaign: Campaign, run_id: int, n_points: int, *
     lineage = list(lineage) or [run_id]
     done = catalogue.completed_keys(lineage)
     session.engine.frames = campaign.frames
-    return session.engine.execute(make_plan(campaign), run_id=run_id, done_keys=done, lineage=lineage,
-                                  n_points=n_points, on_completed=lambda: fit_run(catalogue, run_id, campaign.methods))
+    design, geometry = fit_inputs(session)
+    return session.engine.execute(make_plan(campaign, timing=timing_model(session)), run_id=run_id, done_keys=done, lineage=lineage,
+                                  n_points=n_points,
+                                  on_completed=lambda: fit_run(catalogue, run_id, campaign.methods, design, geometry))
+
+
+def fit_inputs(session: Session):
+    """The sensor's design and what the bench file says of its geometry, for the fits at a run's end.
+
+    The stage-angle model (:mod:`calibration.stage_geometry`) is seed 003's azimuth-on-zenith bench; on an
+    alt-az mount the directions the engine recorded are used as they are (geometry None).
+    """
+    sim = session.devices.sim
+    design = sim.world.sensor.design if sim is not None else DEFAULT_SENSOR
+    if sim is not None and sim.world.axis_order != "azimuth-on-zenith":
+        return design, None
+    g = session.bench_file.geometry
+    return design, GeometryPrior(lever_arm_mm=g.lever_arm_mm or None, lever_arm_sd_mm=getattr(g, "lever_arm_sd_mm", None),
+                                 source_distance_mm=g.source_distance_mm,
+                                 source_distance_sd_mm=getattr(g, "source_distance_sd_mm", None))
 
 
 def resume_run(run_id: int, session: Session, *, on_run=None) -> int:

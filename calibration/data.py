@@ -32,6 +32,11 @@ class BenchData:
         Repeat index of the point at its bench direction.
     sensor_id : str, optional
         Serial of the sensor the data belong to.
+    exposure_ms : ndarray, optional
+        Exposure of each frame [ms].
+    frame_id : ndarray of int, optional
+        Where each point came from (the data row of a CSV file, 1-based; a reading's id in the catalogue), so
+        a rejected frame can be named.
     """
 
     zenith_deg: np.ndarray
@@ -41,6 +46,7 @@ class BenchData:
     repeat: np.ndarray | None = None
     sensor_id: str | None = None
     exposure_ms: np.ndarray | None = field(default=None, compare=False)
+    frame_id: np.ndarray | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         arrays = {}
@@ -63,7 +69,7 @@ class BenchData:
         for name, a in arrays.items():
             a.setflags(write=False)
             object.__setattr__(self, name, a)
-        for name in ("repeat", "exposure_ms"):
+        for name in ("repeat", "exposure_ms", "frame_id"):
             v = getattr(self, name)
             if v is not None:
                 v = np.asarray(v).reshape(-1)
@@ -78,7 +84,19 @@ class BenchData:
         """The points selected by a boolean mask or an index array."""
         pick = lambda a: None if a is None else a[mask]  # noqa: E731
         return BenchData(self.zenith_deg[mask], self.azimuth_deg[mask], self.x_px[mask], self.y_px[mask],
-                         pick(self.repeat), self.sensor_id, pick(self.exposure_ms))
+                         pick(self.repeat), self.sensor_id, pick(self.exposure_ms), pick(self.frame_id))
+
+    def direction_labels(self, tolerance_deg: float = 1e-3) -> np.ndarray:
+        """Label of each point's bench direction, numbered in order of first appearance.
+
+        Directions are told apart by (zenith, azimuth) rounded to `tolerance_deg`; normal-incidence frames
+        stay apart by bench azimuth, as the centre stage records them.
+        """
+        key = np.round(np.column_stack([self.zenith_deg, self.azimuth_deg]) / tolerance_deg)
+        _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        rank = np.empty(first.size, dtype=int)
+        rank[np.argsort(first)] = np.arange(first.size)
+        return rank[inverse.reshape(-1)]
 
     def direction_means(self, tolerance_deg: float = 1e-3) -> "BenchData":
         """One point per bench direction: the mean spot of its repeats.

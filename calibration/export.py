@@ -17,6 +17,7 @@ import re
 
 from .geometry import combined_tilt
 from .models import Calibration
+from .design import SensorDesign
 from .models.physical import PhysicalCalibration
 from .models.seed003 import Seed003Calibration, Seed003SectorCalibration, Seed003TiltCalibration
 from .pinhole import detector_rotation
@@ -86,10 +87,58 @@ static inline void sunbench_sun_direction(double x_px, double y_px, double *zeni
     double d[3] = {ux * k, uy * k, cos(th)}, s[3];
     for (int i = 0; i < 3; ++i)
         s[i] = SB_DETECTOR[i][0] * d[0] + SB_DETECTOR[i][1] * d[1] + SB_DETECTOR[i][2] * d[2];
+    MASK_GLASS_REFINEMENT
     *zenith_deg = atan2(sqrt(s[0] * s[0] + s[1] * s[1]), s[2]) * SB_DEG;
     *azimuth_deg = sb_wrap360(atan2(s[1], s[0]) * SB_DEG);
 }
 """
+
+#: The glass-under-mask variant: the forward chief ray (Snell into a plate parallel to the mask, then on to the
+#: tilted die) and Newton steps from the on-die inverse, as calibration.pinhole does.
+_MASK_FORWARD = """/* Spot [px] of a body-frame sun vector s with the glass bonded under the mask (exact chief ray). */
+static inline void sb_forward_mask_glass(const double s[3], double *x_px, double *y_px) {
+    double eta = 1.0 / SB_GLASS_INDEX, ci = s[2], ct = sqrt(1.0 - eta * eta * (1.0 - ci * ci));
+    double t[3] = {-eta * s[0], -eta * s[1], -eta * s[2] + (eta * ci - ct)};
+    double e[3] = {t[0] * SB_GLASS_MM / ct, t[1] * SB_GLASS_MM / ct, t[2] * SB_GLASS_MM / ct};
+    double nd[3] = {SB_DETECTOR[0][2], SB_DETECTOR[1][2], SB_DETECTOR[2][2]};
+    double un = -(s[0] * nd[0] + s[1] * nd[1] + s[2] * nd[2]);
+    double lam = (-(SB_GAP_MM + SB_GLASS_MM) - (e[0] * nd[0] + e[1] * nd[1] + e[2] * nd[2])) / un;
+    double h[3] = {e[0] - lam * s[0], e[1] - lam * s[1], e[2] - lam * s[2]};
+    double dx = h[0] * SB_DETECTOR[0][0] + h[1] * SB_DETECTOR[1][0] + h[2] * SB_DETECTOR[2][0];
+    double dy = h[0] * SB_DETECTOR[0][1] + h[1] * SB_DETECTOR[1][1] + h[2] * SB_DETECTOR[2][1];
+    double rho2 = dx * dx + dy * dy, st = 1.0;
+    if (rho2 > 0.0) st = 1.0 + SB_APERTURE_C * (dx * dx - dy * dy) / rho2 + SB_APERTURE_S * 2.0 * dx * dy / rho2;
+    *x_px = SB_X0_PX + st * dx / SB_PIXEL_PITCH_MM;
+    *y_px = SB_Y0_PX + SB_HANDEDNESS * st * dy / SB_PIXEL_PITCH_MM;
+}
+"""
+
+_MASK_REFINEMENT = """for (int it = 0; it < 6; ++it) {  /* Newton in the tangent plane on the glass-under-mask model */
+        double ref[3] = {0.0, 0.0, 1.0};
+        if (fabs(s[2]) >= 0.9) { ref[0] = 1.0; ref[2] = 0.0; }
+        double dot = ref[0] * s[0] + ref[1] * s[1] + ref[2] * s[2];
+        double e1[3] = {ref[0] - dot * s[0], ref[1] - dot * s[1], ref[2] - dot * s[2]};
+        double n1 = sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]);
+        for (int i = 0; i < 3; ++i) e1[i] /= n1;
+        double e2[3] = {s[1] * e1[2] - s[2] * e1[1], s[2] * e1[0] - s[0] * e1[2], s[0] * e1[1] - s[1] * e1[0]};
+        double fx, fy, jac[2][2], hstep = 1e-7;
+        sb_forward_mask_glass(s, &fx, &fy);
+        for (int j = 0; j < 2; ++j) {
+            const double *e = j == 0 ? e1 : e2;
+            double sp[3] = {s[0] + hstep * e[0], s[1] + hstep * e[1], s[2] + hstep * e[2]}, gx, gy;
+            double np_ = sqrt(sp[0] * sp[0] + sp[1] * sp[1] + sp[2] * sp[2]);
+            for (int i = 0; i < 3; ++i) sp[i] /= np_;
+            sb_forward_mask_glass(sp, &gx, &gy);
+            jac[0][j] = (gx - fx) / hstep;
+            jac[1][j] = (gy - fy) / hstep;
+        }
+        double det = jac[0][0] * jac[1][1] - jac[0][1] * jac[1][0];
+        double rx = x_px - fx, ry = y_px - fy;
+        double a = (jac[1][1] * rx - jac[0][1] * ry) / det, b = (jac[0][0] * ry - jac[1][0] * rx) / det;
+        for (int i = 0; i < 3; ++i) s[i] += a * e1[i] + b * e2[i];
+        double ns = sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2]);
+        for (int i = 0; i < 3; ++i) s[i] /= ns;
+    }"""
 
 
 def _seed003_constants(cal: Seed003Calibration) -> list[str]:
@@ -141,11 +190,14 @@ def _physical_header(cal: PhysicalCalibration) -> tuple[list[str], str]:
         f"in-plane rotation = {cal.rotation_deg!r} deg */",
         "static const double SB_DETECTOR[3][3] = {\n    " + ",\n    ".join(_array(row) for row in m) + "};",
     ]
-    return constants, _PHYSICAL_BODY
+    if cal.glass_on_mask and cal.glass_mm > 0:
+        return constants, _MASK_FORWARD + "\n" + _PHYSICAL_BODY.replace("MASK_GLASS_REFINEMENT", _MASK_REFINEMENT)
+    return constants, _PHYSICAL_BODY.replace("    MASK_GLASS_REFINEMENT\n", "")
 
 
-def c_header(calibration: Calibration, *, sensor_id: str | None = None) -> str:
-    """C header text for `calibration`, defining ``sunbench_sun_direction(x_px, y_px, &zenith, &azimuth)``."""
+def c_header(calibration: Calibration, *, sensor_id: str | None = None, design: SensorDesign | None = None) -> str:
+    """C header text for `calibration`, defining ``sunbench_sun_direction(x_px, y_px, &zenith, &azimuth)``,
+    with the detector's design (size, pixel pitch) when it is known."""
     if isinstance(calibration, PhysicalCalibration):
         constants, body = _physical_header(calibration)
     elif isinstance(calibration, Seed003Calibration):
@@ -163,6 +215,8 @@ def c_header(calibration: Calibration, *, sensor_id: str | None = None) -> str:
         "",
         _PRELUDE,
         f'#define SB_CALIBRATION_METHOD "{calibration.method}"',
+        *([f"#define SB_DETECTOR_WIDTH_PX {design.width_px}", f"#define SB_DETECTOR_HEIGHT_PX {design.height_px}",
+           f"#define SB_DESIGN_PIXEL_PITCH_MM {_num(design.pixel_pitch_mm)}"] if design is not None else []),
         *constants,
         "",
         body,

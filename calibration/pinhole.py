@@ -12,6 +12,12 @@ where c = (x0, y0) is the foot of the perpendicular from the pinhole on the dete
 pitch. The radial distance is r = g tan θ + t tan θ_g (Snell refraction in the glass). With t = 0 this is
 the ideal pinhole of seed 003 eq. 6, θ = arctan(r / L).
 
+When the glass is bonded under the mask instead (``glass_on_mask``), the plate is parallel to the housing, not
+to a tilted die: the chief ray is traced exactly — vector Snell refraction into the plate, out of it parallel
+to its incoming direction, then on to the die plane — so the plate's shift is taken in the mask's frame and
+the ray meets the die at the die's own tilt. The gap then runs from the glass's exit face to the die, and
+gap + thickness is still the pinhole's perpendicular height above the die.
+
 A slightly non-round pinhole (seed 003 §4.5, error source 13) stretches the spot's offset with its
 azimuth φ_d in the detector frame: r → r (1 + a_c cos 2φ_d + a_s sin 2φ_d), an ellipse of the aperture's
 effective shape; the two coefficients are linear and well conditioned, unlike an (amplitude, angle) pair.
@@ -57,6 +63,8 @@ class PinholeBuild:
         True when the detector rows run against the body +y axis (a mirrored read-out).
     aperture_c, aperture_s : float
         Non-round aperture: the offset stretches by 1 + a_c cos 2φ_d + a_s sin 2φ_d [unitless].
+    glass_on_mask : bool
+        True when the glass is bonded under the mask (parallel to the housing) rather than lying on the die.
     """
 
     x0_px: float = 319.5
@@ -70,6 +78,7 @@ class PinholeBuild:
     mirrored: bool = False
     aperture_c: float = 0.0
     aperture_s: float = 0.0
+    glass_on_mask: bool = False
 
     def __post_init__(self) -> None:
         if not self.gap_mm > 0:
@@ -175,14 +184,39 @@ def spot_from_direction(zenith_deg, azimuth_deg, build: PinholeBuild, pixel_pitc
     return spot_from_vectors(s, build, pixel_pitch_mm)
 
 
+def _die_offset_mask_glass_mm(s: np.ndarray, build: PinholeBuild, m: np.ndarray) -> np.ndarray:
+    """Spot offset (dx, dy) in the die frame [mm] for glass bonded under the mask (module docstring).
+
+    The light travels along u = −s. Snell's law in vector form for the plate's normal z (facing the light):
+    t = η u + (η cos i − cos t) z with η = 1/n; the ray leaves the plate at depth T along t, then runs along
+    u to the die plane m₃·X = −(g + T).
+    """
+    u = -s
+    eta = 1.0 / build.glass_index
+    cos_i = s[..., 2]
+    cos_t = np.sqrt(1.0 - eta**2 * (1.0 - cos_i**2))
+    t = eta * u + (eta * cos_i - cos_t)[..., None] * np.array([0.0, 0.0, 1.0])
+    exit_point = t * (build.glass_mm / cos_t)[..., None]
+    normal = m[:, 2]
+    height = build.gap_mm + build.glass_mm
+    lam = (-height - exit_point @ normal) / (u @ normal)
+    hit = exit_point + lam[..., None] * u
+    return (hit @ m)[..., :2]
+
+
 def spot_from_vectors(s: np.ndarray, build: PinholeBuild, pixel_pitch_mm: float):
     """:func:`spot_from_direction` for unit vectors s of shape (..., 3) [px]."""
     m = detector_rotation(build.tilt_x_deg, build.tilt_y_deg, build.rotation_deg)
+    handed = -1.0 if build.mirrored else 1.0
+    if build.glass_on_mask and build.glass_mm > 0:
+        d = _die_offset_mask_glass_mm(np.asarray(s, dtype=float), build, m) / pixel_pitch_mm
+        if build.aperture_c or build.aperture_s:
+            d = d * _aperture_stretch(d[..., 0], d[..., 1], build)[..., None]
+        return build.x0_px + d[..., 0], build.y0_px + handed * d[..., 1]
     sd = s @ m  # rows: Mᵀ s
     k = _spot_scale_mm(sd[..., 2], build.gap_mm, build.glass_mm, build.glass_index) / pixel_pitch_mm
     if build.aperture_c or build.aperture_s:
         k = k * _aperture_stretch(sd[..., 0], sd[..., 1], build)
-    handed = -1.0 if build.mirrored else 1.0
     # the pinhole inverts the image: the spot moves away from the sun's azimuth
     return build.x0_px - k * sd[..., 0], build.y0_px - handed * k * sd[..., 1]
 
@@ -199,6 +233,8 @@ def direction_from_spot(x_px, y_px, build: PinholeBuild, pixel_pitch_mm: float):
     ----------
     seed 003, eqs. 6–7 (ideal pinhole) and eq. 12; see the module docstring for the model.
     """
+    if build.glass_on_mask and build.glass_mm > 0:
+        return _direction_from_spot_mask_glass(x_px, y_px, build, pixel_pitch_mm)
     handed = -1.0 if build.mirrored else 1.0
     ux = -(np.asarray(x_px, dtype=float) - build.x0_px) * pixel_pitch_mm
     uy = -handed * (np.asarray(y_px, dtype=float) - build.y0_px) * pixel_pitch_mm
@@ -210,3 +246,36 @@ def direction_from_spot(x_px, y_px, build: PinholeBuild, pixel_pitch_mm: float):
     sd = np.stack([ux * scale, uy * scale, np.cos(th)], axis=-1)
     m = detector_rotation(build.tilt_x_deg, build.tilt_y_deg, build.rotation_deg)
     return zenith_azimuth_from_vector(sd @ m.T)
+
+
+def _direction_from_spot_mask_glass(x_px, y_px, build: PinholeBuild, pixel_pitch_mm: float, *, iterations: int = 6):
+    """Inverse of the glass-under-mask forward model by Newton's method in the tangent plane.
+
+    The start is the inverse with the same plate lying on the die, which differs by the plate's tilt against
+    the die only (a few hundredths of a degree for a 1–2° die tilt); each step solves the 2×2 system of the
+    numerical Jacobian of the spot with respect to two tangent directions.
+    """
+    x = np.asarray(x_px, dtype=float)
+    y = np.asarray(y_px, dtype=float)
+    on_die = PinholeBuild(**{**build.to_dict(), "glass_on_mask": False})
+    s = direction_vector(*direction_from_spot(x, y, on_die, pixel_pitch_mm))
+    h = 1e-7
+    for _ in range(iterations):
+        # tangent basis at s: e1 ⟂ s in the plane of s and z (or x near the pole), e2 = s × e1
+        ref = np.where(np.abs(s[..., 2:3]) < 0.9, np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
+        e1 = ref - (ref * s).sum(-1, keepdims=True) * s
+        e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
+        e2 = np.cross(s, e1)
+        fx, fy = spot_from_vectors(s, build, pixel_pitch_mm)
+        cols = []
+        for e in (e1, e2):
+            sp = s + h * e
+            sp /= np.linalg.norm(sp, axis=-1, keepdims=True)
+            gx, gy = spot_from_vectors(sp, build, pixel_pitch_mm)
+            cols.append(np.stack([(gx - fx) / h, (gy - fy) / h], axis=-1))
+        jac = np.stack(cols, axis=-1)  # (..., 2 spot, 2 tangent)
+        rhs = np.stack([x - fx, y - fy], axis=-1)
+        step = np.linalg.solve(jac, rhs[..., None])[..., 0]
+        s = s + step[..., 0:1] * e1 + step[..., 1:2] * e2
+        s /= np.linalg.norm(s, axis=-1, keepdims=True)
+    return zenith_azimuth_from_vector(s)

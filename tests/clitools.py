@@ -7,7 +7,7 @@ from typer.testing import CliRunner
 
 from bench.cli import app
 
-ALL_METHODS = ("seed003", "seed003-tilt", "seed003-sector", "physical")
+ALL_METHODS = ("seed003", "seed003-tilt", "seed003-sector", "physical", "physical-mask")
 # no colour codes, wide enough that nothing wraps
 runner = CliRunner(env={"COLUMNS": "160", "FORCE_COLOR": None, "NO_COLOR": "1", "TERM": "dumb"})
 
@@ -23,7 +23,7 @@ def method_rows(stdout: str) -> dict[str, bool]:
     """Method name → chosen ('*'), from the rows of the metrics table."""
     rows = {}
     for line in stdout.splitlines():
-        m = re.match(r"^\W*(seed003-tilt|seed003-sector|seed003|physical)( \*)?\s", line)
+        m = re.match(r"^\W*(seed003-tilt|seed003-sector|seed003|physical-mask|physical)( \*)?\s", line)
         if m:
             rows[m.group(1)] = bool(m.group(2))
     return rows

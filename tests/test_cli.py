@@ -16,7 +16,7 @@ from calibration.geometry import angular_error_deg
 from calibration.models import METHODS
 from calibration.synthetic import synthetic_bench_data
 
-from clitools import ALL_METHODS, assert_user_error_text, invoke, method_rows
+from clitools import ALL_METHODS, assert_user_error_text, flat, invoke, method_rows
 
 
 
@@ -59,7 +59,7 @@ def test_fit_prints_every_method_and_marks_the_chosen_one(fitted):
     assert set(rows) == set(ALL_METHODS), result.stdout
     assert [m for m, chosen in rows.items() if chosen] == ["physical"]
     assert "* = chosen" in result.stdout
-    assert "264 points from" in result.stdout and "method physical" in result.stdout
+    assert "264 frames from" in result.stdout and "method physical" in result.stdout
     assert "Physical model: fitted build" in result.stdout
     assert "Traceback" not in result.output
 
@@ -115,7 +115,7 @@ def test_fit_one_sensor_of_a_batch(workdir):
     cal = workdir / "b.json"
     result = invoke("fit", "cmos", batch, "--sensor", "SN-B", "--method", "seed003", "-o", cal)
     assert result.exit_code == 0, result.output
-    assert f"{len(b)} points" in result.stdout
+    assert f"{len(b)} frames" in result.stdout
     assert json.loads(cal.read_text())["sensor_id"] == "SN-B"
 
 
@@ -307,3 +307,75 @@ def test_fit_glass_index_options(workdir, bench_csv):
     assert "glass_index" in parameters["fitted"]
     assert abs(parameters["glass_index"] - 1.52) < 5 * parameters["uncertainties"]["glass_index"] + 0.01
     assert_user_error(invoke("fit", "cmos", bench_csv, "--glass-index", "0.5"), "--glass-index")
+
+
+# --- issue 9: robust data, design and bench geometry from the command line ----------------------------------
+
+def _traced_csv(path, *, header_comments="", stage=False, glint_rows=(), optics=None):
+    """A bench data CSV from the simulator's own ray trace (never the fit's model), on the seed 003 grid."""
+    from calibration.synthetic import seed003_grid
+    from drivers.sim.raytrace import SensorOptics, body_direction_from_stage, trace_bench_frames
+
+    optics = optics or SensorOptics(x0_px=325.8, y0_px=233.4, gap_mm=1.05, glass_mm=0.5, tilt_x_deg=0.22,
+                                    tilt_y_deg=-0.21, rotation_deg=1.4)
+    zen, az, rep = seed003_grid()
+    body = body_direction_from_stage(az, zen, lever_arm_mm=136.2, source_distance_mm=7100.0) if stage else (zen, az)
+    x, y = trace_bench_frames(*body, optics, noise_px=0.02, rng=np.random.default_rng(3))
+    for row in glint_rows:  # data rows are 1-based
+        x[row - 1] += 9.0
+    columns = "stage_zenith_deg,stage_azimuth_deg" if stage else "zenith_deg,azimuth_deg"
+    lines = [f"{columns},x_px,y_px,repeat"] + [f"{a},{b},{c:.6f},{d:.6f},{k}" for a, b, c, d, k in zip(zen, az, x, y, rep)]
+    path.write_text(header_comments + "\n".join(lines) + "\n")
+    return path
+
+
+def test_fit_names_every_rejected_glint_by_its_row(tmp_path):
+    path = _traced_csv(tmp_path / "glints.csv", glint_rows=(50, 120, 200))
+    cal = tmp_path / "cal.json"
+    result = invoke("fit", "cmos", path, "-o", cal)
+    assert result.exit_code == 0, result.output
+    text = flat(result.stdout)
+    assert "3 rejected frame(s)" in text
+    for row in (50, 120, 200):
+        assert f"row {row} (" in text
+    document = json.loads(cal.read_text())
+    assert sorted(r["row"] for r in document["rejected"]) == [50, 120, 200]
+    assert document["quality"]["chi2_dof"] < 3 and document["quality"]["warnings"] == []
+    assert document["uncertainty_map"]["max_deg"] > 0
+
+
+def test_fit_takes_the_detector_design_from_the_csv_header_into_document_and_header(tmp_path):
+    from drivers.sim.raytrace import SensorOptics
+
+    optics = SensorOptics(x0_px=652.0, y0_px=505.0, gap_mm=1.05, glass_mm=0.5, tilt_x_deg=0.22, rotation_deg=1.4,
+                          pixel_pitch_mm=0.0053, width_px=1280, height_px=1024)
+    path = _traced_csv(tmp_path / "big.csv", optics=optics,
+                       header_comments="# pixel_pitch_mm: 0.0053\n# width_px = 1280\n# height_px: 1024\n")
+    cal, header = tmp_path / "cal.json", tmp_path / "cal.h"
+    result = invoke("fit", "cmos", path, "--method", "physical", "-o", cal, "--header", header)
+    assert result.exit_code == 0, result.output
+    document = json.loads(cal.read_text())
+    assert document["design"]["pixel_pitch_mm"] == 0.0053 and document["design"]["width_px"] == 1280
+    p, u = document["parameters"], document["parameters"]["uncertainties"]
+    assert abs(p["gap_mm"] - 1.05) <= 3 * u["gap_mm"] and abs(p["glass_mm"] - 0.5) <= 3 * u["glass_mm"]
+    assert "#define SB_DETECTOR_WIDTH_PX 1280" in header.read_text()
+    assert "pixel pitch not given" not in result.stdout
+
+
+def test_fit_of_stage_angles_fits_the_bench_geometry_and_warns_of_a_wrong_one(tmp_path):
+    path = _traced_csv(tmp_path / "stage.csv", stage=True)
+    cal = tmp_path / "cal.json"
+    result = invoke("fit", "cmos", path, "-o", cal, "--source-distance-mm", "7100", "--source-distance-sd-mm", "20")
+    assert result.exit_code == 0, result.output
+    assert "Bench geometry (from the stage angles)" in result.stdout
+    geometry = json.loads(cal.read_text())["bench_geometry"]
+    assert abs(geometry["lever_arm_mm"]["value"] - 136.2) <= 3 * geometry["lever_arm_mm"]["sd"]
+    wrong = invoke("fit", "cmos", path, "--lever-arm-mm", "100", "--lever-arm-sd-mm", "0.5",
+                   "--source-distance-mm", "7100", "--source-distance-sd-mm", "5")
+    assert wrong.exit_code == 0, wrong.output
+    assert "warning:" in wrong.stdout and "disagrees with what the spots say" in flat(wrong.stdout)
+
+
+def test_an_unknown_header_comment_is_refused_naming_its_line(tmp_path):
+    path = _csv(tmp_path, f"# pixel_pich_mm: 0.0053\n{HEADER}\n0,0,1,1\n", name="typo.csv")
+    assert_user_error(invoke("fit", "cmos", path), "typo.csv", "line 1", "unknown header comment 'pixel_pich_mm'")

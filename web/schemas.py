@@ -171,12 +171,54 @@ class PointsPublic(_Out):
     count: int
 
 
+class QualityPublic(_Out):
+    chi2_dof: float | None = Field(None, description="χ² per degree of freedom of the fit's residuals against "
+                                                     "the repeat scatter (1 when the model explains the data)")
+    repeat_scatter_px: float | None = Field(None, description="Scatter of the frames repeated at one direction [px]")
+    residual_rms_px: float | None = Field(None, description="RMS of the fit's residuals per axis [px]")
+    frames: int | None = Field(None, description="Frames the fit used, after rejection")
+    directions: int | None = Field(None, description="Bench directions those frames were averaged into")
+    warnings: list[str] = Field([], description="What an engineer should know before trusting the calibration")
+
+
+class RejectedFramePublic(_Out):
+    row: int | None = Field(None, description="Row of the frame in the bench data, when it has one")
+    zenith_deg: float
+    azimuth_deg: float
+    x_px: float
+    y_px: float
+    offset_px: float = Field(description="How far the frame lay from the others at its direction [px]")
+    reason: str
+
+
+class UncertaintyMapPublic(_Out):
+    zenith_deg: list[float] = Field(description="Zenith of each row of the grid [°]")
+    azimuth_deg: list[float] = Field(description="Azimuth of each column of the grid [°]")
+    sigma_deg: list[list[float | None]] = Field(
+        description="1σ pointing uncertainty (RMS vector error) from the calibration's parameter covariance, "
+                    "rows by zenith [°]")
+    max_deg: float | None = None
+    rms_deg: float | None = Field(None, description="RMS of σ over the field, per unit solid angle [°]")
+    semi_major_deg: list[list[float | None]] | None = None
+    semi_minor_deg: list[list[float | None]] | None = None
+    noise_px: float | None = Field(None, description="Centroid noise of one frame assumed for noise_sigma_deg [px]")
+    noise_sigma_deg: list[list[float | None]] | None = Field(
+        None, description="What that centroid noise adds to one frame read in flight, apart [°]")
+    kind: str | None = None
+
+
 class CalibrationPublic(_Out):
     id: int
     method: str
     chosen: bool
     created_utc: str
     metrics: dict[str, Any]
+    quality: QualityPublic | None = Field(None, description="The fit's quality in words and figures, from the "
+                                                            "calibration document (absent from older ones)")
+    rejected: list[RejectedFramePublic] | None = Field(None, description="Frames left out of the fit, and why "
+                                                                         "(absent from older documents)")
+    uncertainty_map: UncertaintyMapPublic | None = Field(None, description="Methods with a parameter covariance "
+                                                                           "(physical) only")
 
 
 class CalibrationsPublic(_Out):

@@ -7,6 +7,7 @@ method               what it is
 ``seed003-tilt``     plus the detector tilt θ*(φ) (seed 003 eqs. 14–16)
 ``seed003-sector``   one θ(r) per 45° sector (seed 003 §4.5)
 ``physical``         joint physical model: offset, gap, cover glass, tilt, rotation
+``physical-mask``    the same with the cover glass bonded under the mask (tilted against the die)
 ===================  =====================================================================
 """
 
@@ -16,12 +17,13 @@ from ..data import BenchData
 from ..design import DEFAULT_SENSOR, SensorDesign
 from ..errors import CalibrationFormatError
 from .base import FORMAT, FORMAT_VERSION, Calibration
-from .physical import PhysicalCalibration
+from .physical import PhysicalCalibration, PhysicalMaskCalibration
 from .seed003 import Seed003Calibration, Seed003SectorCalibration, Seed003TiltCalibration
 
 METHODS: dict[str, type[Calibration]] = {
     cls.method: cls
-    for cls in (Seed003Calibration, Seed003TiltCalibration, Seed003SectorCalibration, PhysicalCalibration)
+    for cls in (Seed003Calibration, Seed003TiltCalibration, Seed003SectorCalibration, PhysicalCalibration,
+                PhysicalMaskCalibration)
 }
 
 

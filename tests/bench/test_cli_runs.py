@@ -226,7 +226,7 @@ def test_export_csv_is_the_bench_data_that_fit_reads(seed003_run, workdir):
     fit = invoke("fit", "cmos", path)
     assert fit.exit_code == 0, fit.output
     assert set(method_rows(fit.stdout)) == set(ALL_METHODS)
-    assert f"{len(rows)} points from" in flat(fit.stdout)
+    assert f"{len(rows)} frames from" in flat(fit.stdout)
 
 
 def test_export_json_has_the_run_its_points_readings_and_calibrations(seed003_run):

@@ -276,6 +276,12 @@ def test_a_campaign_runs_and_its_results_download(client, service):
     calibrations = client.get(f"/api/runs/{run_id}/calibrations", headers=AUTH).json()["data"]
     assert sorted(c["method"] for c in calibrations) == sorted(METHODS)
     assert sum(c["chosen"] for c in calibrations) == 1 and all("heldout" in c["metrics"] for c in calibrations)
+    # from each document: the fit's quality in words, the frames it rejected, and a physical model's 1σ map
+    for c in calibrations:
+        assert isinstance(c["quality"]["warnings"], list) and isinstance(c["rejected"], list), c["method"]
+        assert (c["uncertainty_map"] is not None) == c["method"].startswith("physical"), c["method"]
+        if c["uncertainty_map"]:
+            assert 0 < c["uncertainty_map"]["rms_deg"] <= c["uncertainty_map"]["max_deg"] < 0.5
 
     data = client.get(f"/api/runs/{run_id}/data.csv", headers=AUTH)
     assert data.headers["content-type"].startswith("text/csv")

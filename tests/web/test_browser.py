@@ -7,6 +7,7 @@ another binary). Playwright never downloads a browser here. Screenshots of every
 ``test-artifacts/browser/`` (``SUNBENCH_ARTIFACTS`` moves the folder).
 """
 
+import json
 import os
 import re
 import time
@@ -15,6 +16,9 @@ from pathlib import Path
 
 import pytest
 from playwright.sync_api import Page, expect, sync_playwright
+
+from calibration.models import METHODS, calibration_from_dict
+from calibration.uncertainty import uncertainty_document
 
 from serving import ROOT, serving
 
@@ -170,7 +174,7 @@ def test_a_campaign_from_the_launcher_to_its_results(page, server):
     page.click("#result-link a")
     expect(page).to_have_url(re.compile(r"/results\?run=\d+$"))
     rows = page.locator("#metrics tbody tr")
-    expect(rows).to_have_count(4)  # seed003, -tilt, -sector, physical side by side
+    expect(rows).to_have_count(len(METHODS))  # seed003, -tilt, -sector and the physical models side by side
     expect(page.locator("#metrics tbody tr.chosen")).to_have_count(1)
     chosen = page.locator("#metrics tbody tr.chosen td").first.inner_text()
     assert chosen.startswith("physical")  # the physical model predicts held-out directions best
@@ -179,6 +183,9 @@ def test_a_campaign_from_the_launcher_to_its_results(page, server):
     for plot in ("spot-plot", "radius-plot", "zenith-residual-plot", "azimuth-plot", "error-plot"):
         expect(page.locator(f"#{plot} .main-svg").first).to_be_visible()
         assert plot_points(page, plot) > 10, plot
+    # the chosen physical model's 1σ pointing uncertainty over the field, and the fit's quality in words
+    expect(page.locator("#uncertainty-plot .main-svg").first).to_be_visible()
+    expect(page.locator("#quality-section")).to_be_visible()
     # fig. 4.7 draws one line per bench azimuth
     assert page.locator("#zenith-residual-plot .scatterlayer .trace").count() == 8
     page.shots("results")
@@ -199,6 +206,83 @@ def test_a_campaign_from_the_launcher_to_its_results(page, server):
     expect(page.locator("#fleet tbody tr")).to_have_count(1)
     expect(page.locator("#fleet tbody tr td").nth(5)).to_have_text("physical")
     page.shots("fleet")
+
+
+# -- a calibration's quality and uncertainty ----------------------------------------------------------------
+SMALL = {"name": "small", "frames": "none",
+         "seed003": {"azimuth_step_deg": 90.0, "repeats": 1, "centre_repeats": 1, "tilt_stage": False}}
+
+
+def _api(server, path, body=None):
+    base, token = server
+    request = urllib.request.Request(base + path, data=None if body is None else json.dumps(body).encode(),
+                                     headers={"Authorization": f"Bearer {token}", "Content-Type": "application/json"})
+    return json.loads(urllib.request.urlopen(request, timeout=10).read())
+
+
+def _fitted_run(server, timeout_s=60.0) -> int:
+    """A completed run with its calibrations: one an earlier test left, else a small campaign run now."""
+    def fitted():
+        return [r["id"] for r in _api(server, "/api/runs")["data"]
+                if r["status"] == "completed" and _api(server, f"/api/runs/{r['id']}/calibrations")["count"]]
+    if not fitted():
+        _api(server, "/api/campaigns", SMALL)
+    deadline = time.monotonic() + timeout_s
+    while not fitted():
+        assert time.monotonic() < deadline, "the small campaign did not finish"
+        time.sleep(0.2)
+    return fitted()[-1]
+
+
+def test_the_results_page_shows_the_quality_the_rejected_frames_and_the_uncertainty_map(page, server):
+    """The page draws what the calibration documents carry; the quality and the rejected frames are put into
+    the API's answer here (the fit that writes them is tested in tests/calibration), and so is the uncertainty
+    map while the run's document lacks it."""
+    run_id = _fitted_run(server)
+    calibrations = _api(server, f"/api/runs/{run_id}/calibrations")["data"]
+    chosen = next(c for c in calibrations if c["chosen"])
+    assert chosen["method"].startswith("physical")
+    other = next(c["method"] for c in calibrations if not c["chosen"] and not c["metrics"].get("error"))
+    document = _api(server, f"/api/calibrations/{run_id}/{chosen['method']}.json")
+    umap = uncertainty_document(calibration_from_dict(document))
+    warning = "χ²/dof is 3.4: the model misses the data by more than the repeat scatter"
+    quality = {"chi2_dof": 3.4, "repeat_scatter_px": 0.021, "residual_rms_px": 0.038, "warnings": [warning]}
+    rejected = [{"row": 17, "zenith_deg": 30.0, "azimuth_deg": 45.0, "x_px": 301.2, "y_px": 250.9, "offset_px": 6.3,
+                 "reason": "6.3 px from the model"}]
+
+    def with_quality(route):
+        response = route.fetch()
+        if not response.ok:  # before the token is pasted: the API's refusal, as it is
+            route.fulfill(response=response)
+            return
+        body = response.json()
+        for c in body["data"]:
+            if c["method"] == chosen["method"]:
+                c.update(quality=quality, rejected=rejected, uncertainty_map=c["uncertainty_map"] or umap)
+            elif c["method"] == other:  # as a document written before these fields
+                c.update(quality=None, rejected=None, uncertainty_map=None)
+        route.fulfill(response=response, json=body)
+    page.route(re.compile(r"/api/runs/\d+/calibrations$"), with_quality)
+
+    page.goto("/results")
+    paste_token(page, server[1])
+    page.goto(f"/results?run={run_id}")
+    expect(page.locator("#quality-warnings")).to_be_visible()
+    expect(page.locator("#quality-warnings li")).to_have_text([warning])
+    expect(page.locator("#quality-figures")).to_contain_text("3.40")
+    expect(page.locator("#rejected tbody tr")).to_have_count(1)
+    expect(page.locator("#rejected tbody tr td").last).to_have_text("6.3 px from the model")
+    expect(page.locator("#uncertainty-plot .main-svg").first).to_be_visible()
+    cells = len(umap["zenith_deg"]) * len(umap["azimuth_deg"])
+    assert page.locator("#uncertainty-plot .barlayer .point").count() == cells
+    expect(page.locator("#uncertainty-plot .colorbar")).to_contain_text("1σ pointing uncertainty [°]")
+    page.shots("quality-and-uncertainty")
+
+    # a document without them (an older one, or a polynomial fit's map): no box, no table, no map
+    page.select_option("#method", other)
+    expect(page.locator("#radius-plot .gtitle")).to_contain_text(other)
+    expect(page.locator("#quality-section")).to_be_hidden()
+    expect(page.locator("#uncertainty-section")).to_be_hidden()
 
 
 # -- the bench page -----------------------------------------------------------------------------------------

@@ -130,7 +130,8 @@ def _finished_run(client, timeout_s=60.0) -> int:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         runs = client.get("/api/runs", headers=AUTH).json()["data"]
-        if runs and client.get(f"/api/runs/{runs[0]['id']}/calibrations", headers=AUTH).json()["count"]:
+        # a run is marked completed only once every calibration is stored (they are stored one by one)
+        if runs and runs[0]["status"] == "completed":
             return runs[0]["id"]
         time.sleep(0.05)
     raise AssertionError("the campaign did not finish")

@@ -13,6 +13,15 @@ router = APIRouter(prefix="/api/runs", tags=["runs"], dependencies=READ,
                    responses={404: {"description": "No such run"}})
 
 
+#: What the results page shows of a calibration document besides its metrics (none in older documents)
+DOCUMENT_FIELDS = ("quality", "rejected", "uncertainty_map")
+
+
+def _with_document_fields(record: dict) -> dict:
+    document = record.get("document") or {}
+    return {**record, **{name: document.get(name) for name in DOCUMENT_FIELDS}}
+
+
 @router.get("", response_model=RunsPublic, summary="List runs")
 def read_runs(catalogue: CatalogueDep, campaign_id: int | None = None):
     """Every run (or those of one campaign), oldest first."""
@@ -35,9 +44,11 @@ def read_points(run_id: int, catalogue: CatalogueDep):
 
 @router.get("/{run_id}/calibrations", response_model=CalibrationsPublic, summary="Calibrations of a run")
 def read_calibrations(run_id: int, catalogue: CatalogueDep):
-    """Every method fitted to the run with its metrics; `chosen` marks the best held-out one."""
+    """Every method fitted to the run with its metrics; `chosen` marks the best held-out one. From each
+    calibration document: its quality and warnings, the frames it rejected, and (physical model) its 1σ
+    pointing uncertainty over the field; null where the document does not say."""
     catalogue.run(run_id)
-    calibrations = catalogue.calibrations(run_id)
+    calibrations = [_with_document_fields(c) for c in catalogue.calibrations(run_id)]
     return CalibrationsPublic(run_id=run_id, data=calibrations, count=len(calibrations))
 
 

@@ -1,5 +1,7 @@
-// Results of a run: the metrics of every method (table 4.1) and seed 003's figures 4.4 and 4.6–4.9.
-// The radius and the fitted directions come from GET /api/runs/{id}/fit (computed by the calibration code).
+// Results of a run: the metrics of every method (table 4.1) and seed 003's figures 4.4 and 4.6–4.9, and of the
+// calibration shown its quality (warnings, rejected frames) and its 1σ pointing uncertainty over the field.
+// The radius and the fitted directions come from GET /api/runs/{id}/fit (computed by the calibration code); the
+// quality and the uncertainty map from the calibration documents, as GET /api/runs/{id}/calibrations serves them.
 /* global Plotly */
 import { $, api, download, el, fmt, initTokenForm, matrixLayout, PLOT_CONFIG, plotLayout, query, report, say } from "./common.js";
 
@@ -144,6 +146,77 @@ function errorPlot(fit) {
 
 const FIT_PLOTS = [radiusPlot, zenithResidualPlot, azimuthPlot, errorPlot];
 
+// the fit's quality in words (its warnings first), its figures and the frames it left out; documents written
+// before these were recorded have none of it (null), and then the section stays hidden
+function qualitySection(record) {
+  const quality = record?.quality ?? null;
+  const rejected = record?.rejected ?? null;
+  $("#quality-section").hidden = !quality && !rejected;
+  if (!quality && !rejected) return;
+  $("#quality-heading").textContent = `Quality of the ${record.method} calibration`;
+  const warnings = quality?.warnings ?? [];
+  $("#quality-warnings").hidden = !warnings.length;
+  $("#quality-warnings ul").replaceChildren(...warnings.map((w) => el("li", {}, w)));
+  $("#quality-ok").hidden = !quality || warnings.length > 0;
+  const figures = quality ? [
+    ["χ²/dof (residuals against the repeat scatter; 1 when the model explains the data)", fmt(quality.chi2_dof, 2)],
+    ["scatter of repeated frames [px]", fmt(quality.repeat_scatter_px, 4)],
+    ["RMS residual of the fit [px]", fmt(quality.residual_rms_px, 4)],
+    ...(quality.frames !== null && quality.frames !== undefined
+      ? [["frames fitted / bench directions", `${quality.frames} / ${quality.directions ?? "–"}`]] : [])] : [];
+  $("#quality-figures").replaceChildren(...figures.flatMap(([name, value]) => [el("dt", {}, name), el("dd", {}, value)]));
+  $("#rejected-part").hidden = !rejected;
+  const rows = rejected ?? [];
+  $("#rejected-none").hidden = rows.length > 0;
+  $("#rejected").hidden = !rows.length;
+  $("#rejected tbody").replaceChildren(...rows.map((r) => el("tr", {},
+    el("td", {}, r.row === null || r.row === undefined ? "–" : String(r.row)), el("td", {}, fmt(r.zenith_deg, 2)),
+    el("td", {}, fmt(r.azimuth_deg, 2)), el("td", {}, fmt(r.x_px, 2)), el("td", {}, fmt(r.y_px, 2)),
+    el("td", {}, fmt(r.offset_px, 2)), el("td", {}, r.reason))));
+}
+
+// the calibration's 1σ pointing uncertainty (RMS vector error from its parameter covariance) on its zenith ×
+// azimuth grid, as a polar map seen along the boresight: one wedge per grid node, zenith outwards
+function uncertaintyPlot(record) {
+  const map = record?.uncertainty_map ?? null;
+  $("#uncertainty-section").hidden = !map;
+  if (!map) {
+    Plotly.purge("uncertainty-plot");
+    return;
+  }
+  const zenithStep = map.zenith_deg.length > 1 ? map.zenith_deg[1] - map.zenith_deg[0] : 5;
+  const azimuthStep = 360 / map.azimuth_deg.length;
+  const cells = { r: [], base: [], theta: [], color: [], text: [] };
+  map.zenith_deg.forEach((zenith, i) => map.azimuth_deg.forEach((azimuth, j) => {
+    const sigma = map.sigma_deg[i][j];
+    if (sigma === null) return;
+    const low = Math.max(zenith - zenithStep / 2, 0);
+    const ellipse = map.semi_major_deg ? `<br>ellipse ${fmt(map.semi_major_deg[i][j], 4)}° × ${fmt(map.semi_minor_deg[i][j], 4)}°` : "";
+    cells.base.push(low);
+    cells.r.push(zenith + zenithStep / 2 - low);
+    cells.theta.push(azimuth);
+    cells.color.push(sigma);
+    cells.text.push(`θ ${fmt(zenith, 0)}°, φ ${fmt(azimuth, 0)}°: σ ${fmt(sigma, 4)}°${ellipse}`);
+  }));
+  const outer = map.zenith_deg[map.zenith_deg.length - 1] + zenithStep / 2;
+  Plotly.react("uncertainty-plot", [{
+    type: "barpolar", r: cells.r, base: cells.base, theta: cells.theta, width: azimuthStep, text: cells.text,
+    marker: { color: cells.color, colorscale: "Viridis", line: { width: 0 },
+      colorbar: { title: { text: "1σ pointing uncertainty [°]", side: "right" } } },
+    hovertemplate: "%{text}<extra></extra>",
+  }], {
+    title: { text: `1σ pointing uncertainty [°] of ${record.method}` },
+    polar: { bargap: 0, radialaxis: { range: [0, outer], ticksuffix: "°", angle: 0 }, angularaxis: { ticksuffix: "°" } },
+    margin: { t: 50, r: 10, b: 30, l: 10 }, showlegend: false,
+  }, PLOT_CONFIG);
+  const noise = map.noise_sigma_deg ? Math.max(...map.noise_sigma_deg.flat().filter((v) => v !== null)) : null;
+  $("#uncertainty-info").textContent = `Largest ${fmt(map.max_deg, 4)}°, RMS over the field ${fmt(map.rms_deg, 4)}°: `
+    + "the RMS angle between the direction the calibration reports and the true one, from the uncertainty of its "
+    + "fitted parameters (first order), zenith outwards, body azimuth around. "
+    + (noise === null ? "A frame read in flight adds its own centroid noise."
+      : `A frame read in flight adds its centroid noise: up to ${fmt(noise, 4)}° for ${fmt(map.noise_px, 3)} px.`);
+}
+
 function downloads(runId, method) {
   const button = (label, path, filename) => el("button", { onclick: () => download(path, filename).catch(report) }, label);
   $("#downloads").replaceChildren(
@@ -152,8 +225,11 @@ function downloads(runId, method) {
       button(`${method} C header`, `/api/calibrations/${runId}/${method}.h`, `run-${runId}-${method}.h`)] : []));
 }
 
-async function showMethod(runId, points, method, sensor) {
+async function showMethod(runId, points, method, sensor, calibrations) {
   downloads(runId, method);
+  const record = calibrations.filter((c) => c.method === method).pop();  // the latest, as the downloads
+  qualitySection(record);
+  uncertaintyPlot(record);
   let fit = null;
   if (method) {
     try { fit = await api(`/api/runs/${runId}/fit?method=${encodeURIComponent(method)}`); } catch (err) { report(err); }
@@ -177,13 +253,13 @@ async function showRun(runId) {
   const chosen = usable.find((c) => c.chosen) || usable[0];
   const select = $("#method");
   select.replaceChildren(...usable.map((c) => el("option", { value: c.method, selected: c === chosen }, c.method + (c.chosen ? " (chosen)" : ""))));
-  select.onchange = () => showMethod(runId, points.data, select.value, status?.sensor);
+  select.onchange = () => showMethod(runId, points.data, select.value, status?.sensor, calibrations.data);
   if (calibrations.data.length) metricsTable(calibrations.data);
   if (!usable.length) {
     say(calibrations.data.length ? "every fit of this run failed: see the table"
       : `no calibration: the run ${run.status === "completed" ? "has none stored" : `was ${run.status} before its fit`}`, true);
   }
-  await showMethod(runId, points.data, chosen?.method, status?.sensor);
+  await showMethod(runId, points.data, chosen?.method, status?.sensor, calibrations.data);
 }
 
 async function init() {
