@@ -65,6 +65,43 @@ class GridProcedure(_Strict):
     auto_exposure: AutoExposure = AutoExposure()
 
 
+class PhysicalProcedure(_Strict):
+    """The physical model's own procedure: few directions chosen by their information, measured in batches
+    along a short table tour, fitted after each batch, stopped once the targets are met
+    (:mod:`calibration.design_of_experiments`; examples/physical.yaml)."""
+
+    first_batch: int = Field(16, ge=10, le=200)
+    batch_size: int = Field(8, ge=1, le=200)
+    max_batches: int = Field(3, ge=1, le=20)
+    check_directions: int = Field(8, ge=3, le=50)
+    repeats: int = Field(4, ge=1, le=100)
+    check_rms_target_deg: float = Field(0.02, gt=0, le=5)
+    parameter_budget_deg: float = Field(0.01, gt=0, le=5)
+    parameter_targets: dict[str, float] = Field(default_factory=dict)
+    zenith_max_deg: float = Field(60.0, gt=5, lt=89)
+    zenith_step_deg: float = Field(5.0, gt=0, le=30)
+    azimuth_step_deg: float = Field(15.0, gt=0, le=90)
+    edge_margin_px: float = Field(24.0, ge=0, le=200)
+    auto_exposure: AutoExposure = AutoExposure()
+
+    @field_validator("parameter_targets")
+    @classmethod
+    def _targets(cls, v):
+        from calibration.models.physical import FITTED
+
+        unknown = [k for k in v if k not in FITTED]
+        if unknown:
+            raise ValueError(f"unknown parameter(s) {unknown}; known: {list(FITTED)}")
+        if any(not t > 0 for t in v.values()):
+            raise ValueError("every parameter target must be positive")
+        return v
+
+    @property
+    def max_points(self) -> int:
+        """The cap: fit directions of every batch plus the check directions."""
+        return self.first_batch + (self.max_batches - 1) * self.batch_size + self.check_directions
+
+
 class Alignment(_Strict):
     """Caliper readings of the bench alignment (seed 003 §4.1), checked before anything moves.
 
@@ -83,12 +120,13 @@ class Campaign(_Strict):
     """A campaign: a procedure run on one sensor or on a fleet (a flight batch is ten)."""
 
     name: str = Field(min_length=1)
-    plan: Literal["seed003", "grid"] = "seed003"
+    plan: Literal["seed003", "grid", "physical"] = "seed003"
     operator: str = "unknown"
     sensors: tuple[str, ...] = Field(("SIM-0001",), min_length=1)
     frames: Literal["roi", "full", "none"] = "roi"
     seed003: Seed003Procedure = Seed003Procedure()
     grid: GridProcedure = GridProcedure()
+    physical: PhysicalProcedure = PhysicalProcedure()
     alignment: Alignment | None = None
     methods: tuple[str, ...] = tuple(METHODS)
 

@@ -13,6 +13,7 @@ run skips the keys its lineage recorded (research note anchors-orchestration, le
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import re
 import threading
@@ -22,9 +23,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calibration.centroid import CentroidError, find_spot
+from calibration.geometry import incidence_from_stage_angle
 from drivers.errors import DeviceFault, DeviceTimeout
-from .messages import (Capture, Checkpoint, CloseShutter, LampOn, Log, Measure, Move, OpenShutter, Plan, Reading,
-                       Record, SetExposure, WaitWarm)
+
+from .messages import (Capture, Checkpoint, CloseShutter, LampOn, Log, Measure, MayStopEarly, Move, OpenShutter, Plan,
+                       Reading, Record, SetExposure, WaitWarm)
 
 
 class EngineState(str, enum.Enum):
@@ -303,7 +306,7 @@ class RunEngine:
     # -- messages --------------------------------------------------------------------------------------
     def _handle(self, msg):
         d = self.devices
-        if not isinstance(msg, (Log, Record)) and self._abort:
+        if not isinstance(msg, (Log, Record, MayStopEarly)) and self._abort:
             raise Aborted()  # nothing acts on the bench once an abort or an emergency stop is asked for
         if isinstance(msg, Measure):
             return self._measure(msg.point)
@@ -342,6 +345,9 @@ class RunEngine:
             return None
         if isinstance(msg, Checkpoint):
             self._checkpoint()
+            return None
+        if isinstance(msg, MayStopEarly):
+            self.catalogue.log_event(self._run_id, "log", f"this plan may stop early ({msg.reason})")
             return None
         raise TypeError(f"the engine does not know the message {msg!r}")
 
@@ -416,6 +422,8 @@ class RunEngine:
                 self.catalogue.log_event(self._run_id, "warning",
                                          f"point {point.key} interrupted; it will be measured again")
                 continue  # the checkpoint pauses or suspends; the point starts over
+            zenith, azimuth = self.body_direction(point)
+            readings = [dataclasses.replace(r, zenith_deg=zenith, azimuth_body_deg=azimuth) for r in readings]
             self._record(point, readings, started)
             self._done.add(point.key)
             self._point_times.append(time.monotonic() - t0)
@@ -429,24 +437,35 @@ class RunEngine:
 
     def _recorded(self, key: str):
         rows = [r for r in self.catalogue.readings(self._lineage) if r["key"] == key]
-        return [Reading(r["repeat"], r["x_px"] if r["x_px"] is not None else float("nan"),
-                        r["y_px"] if r["y_px"] is not None else float("nan"), r["peak_dn"] or 0.0,
-                        r["n_pixels"] or 0, r["flags"] or 0, r["status"], r["t_s"] or 0.0) for r in rows]
+        nan = float("nan")
+        return [Reading(r["repeat"], r["x_px"] if r["x_px"] is not None else nan,
+                        r["y_px"] if r["y_px"] is not None else nan, r["peak_dn"] or 0.0,
+                        r["n_pixels"] or 0, r["flags"] or 0, r["status"], r["t_s"] or 0.0,
+                        zenith_deg=r["zenith_deg"] if r["zenith_deg"] is not None else nan,
+                        azimuth_body_deg=r["azimuth_body_deg"] if r["azimuth_body_deg"] is not None else nan)
+                for r in rows]
 
-    def _record(self, point, readings, started) -> None:
-        from calibration.geometry import incidence_from_stage_angle
+    def body_direction(self, point) -> tuple[float, float]:
+        """The sun direction in the body frame the bench believes for a point (zenith, azimuth) [°].
 
+        References
+        ----------
+        seed 003, eq. 8 (a negative stage angle is the positive zenith on the opposite azimuth).
+        """
         geometry = self.geometry
         theta = float(incidence_from_stage_angle(point.zenith_stage_deg, geometry.lever_arm_mm,
                                                  geometry.source_distance_mm))
-        azimuth_body = float(np.mod(point.azimuth_deg + (180.0 if theta < 0 else 0.0), 360.0))
+        return abs(theta), float(np.mod(point.azimuth_deg + (180.0 if theta < 0 else 0.0), 360.0))
+
+    def _record(self, point, readings, started) -> None:
+        zenith, azimuth_body = self.body_direction(point)
         paths = self._save_frames(point, readings)
         rows = [{"repeat": r.repeat, "x_px": None if not r.ok else r.x_px, "y_px": None if not r.ok else r.y_px,
                  "peak_dn": None if not np.isfinite(r.peak_dn) else float(r.peak_dn), "n_pixels": r.n_pixels,
                  "flags": r.flags, "status": r.status, "frame_path": paths.get(r.repeat), "t_s": r.t_s}
                 for r in readings]
         self.catalogue.record_point(self._run_id, point.key, stage=point.stage, azimuth_deg=point.azimuth_deg,
-                                    zenith_stage_deg=point.zenith_stage_deg, zenith_deg=abs(theta),
+                                    zenith_stage_deg=point.zenith_stage_deg, zenith_deg=zenith,
                                     azimuth_body_deg=azimuth_body, exposure_ms=self._exposure(),
                                     readings=rows, started_utc=started)
 

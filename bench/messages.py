@@ -56,6 +56,9 @@ class Reading:
         "ok" or the name of the centroid error ("NoSpotError", "SaturatedSpotError", "MultipleSpotsError").
     t_s : float
         Time of the frame on the bench clock [s].
+    zenith_deg, azimuth_body_deg : float
+        The sun direction in the sensor body frame the bench believes for the point's stage angles (seed 003
+        eq. 8 with the bench geometry), as the engine records it [°]; NaN where no bench answered (preflight).
     """
 
     repeat: int
@@ -67,6 +70,8 @@ class Reading:
     status: str
     t_s: float = 0.0
     frame: np.ndarray | None = field(default=None, compare=False, repr=False)
+    zenith_deg: float = float("nan")
+    azimuth_body_deg: float = float("nan")
 
     @property
     def ok(self) -> bool:
@@ -141,6 +146,17 @@ class Record(Msg):
 
     key: str
     value: Any
+
+
+@dataclass(frozen=True)
+class MayStopEarly(Msg):
+    """The plan may end before its last point (a stopping rule decides on the readings).
+
+    The engine only logs it; preflight, whose dry readings decide nothing, expands every point and reports its
+    counts and duration as upper bounds, with `reason`.
+    """
+
+    reason: str
 
 
 @dataclass(frozen=True)

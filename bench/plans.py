@@ -4,6 +4,8 @@
   centre stage (8 azimuths × 5 frames at normal incidence), tilt stage of the revised procedure (§4.4–4.5),
   grid stage (8 azimuths × zenith 0–60° in 10° steps × 4 frames, all azimuths at each zenith).
 * :func:`grid_plan` — a plain grid.
+* :func:`physical_plan` — the physical model's procedure: D-optimal directions in batches along a short table
+  tour, a fit after each batch, stopped once the parameters and the check directions meet their targets.
 
 Point keys are built from the stage and the angles only, so a plan expands to the same keys every time and
 a resumed run can skip what its lineage already recorded.
@@ -11,13 +13,19 @@ a resumed run can skip what its lineage already recorded.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
+from calibration.centroid import SpotFlag
+from calibration.data import BenchData
 from calibration.design import BenchGeometry
+from calibration.design_of_experiments import design_experiment, order_tour, parameter_targets, stopping_decision
 
-from .campaign import Alignment, AutoExposure, Campaign, GridProcedure, Seed003Procedure
-from .messages import (Capture, CloseShutter, LampOn, Log, Measure, Move, OpenShutter, Plan, Point, Record,
-                       SetExposure, WaitWarm)
+from .campaign import Alignment, AutoExposure, Campaign, GridProcedure, PhysicalProcedure, Seed003Procedure
+from .messages import (Capture, CloseShutter, LampOn, Log, MayStopEarly, Measure, Move, OpenShutter, Plan, Point,
+                       Record, SetExposure, WaitWarm)
+from .preflight import TimingModel
 
 # seed 003 §4.1 alignment tolerances
 LATERAL_TOLERANCE_MM = 0.5
@@ -185,8 +193,117 @@ def grid_plan(procedure: GridProcedure, *, full_scale_dn: float = 1023.0) -> Pla
     yield CloseShutter()
 
 
-def make_plan(campaign: Campaign, *, full_scale_dn: float = 1023.0) -> Plan:
-    """The plan a campaign names."""
+#: Flags of a spot that is recorded but never fitted: a spot cut by the frame's edge has a biased centre.
+UNFITTED_FLAGS = SpotFlag.NEAR_EDGE | SpotFlag.ROI_CLIPPED
+
+
+def bench_data_of(readings) -> BenchData:
+    """The fittable frames of readings answered by the engine: a spot, not flagged as cut by an edge, and the
+    body direction the bench believes (the dry readings of preflight have neither, so they give no data)."""
+    rows = [r for r in readings
+            if r.ok and np.isfinite(r.x_px) and np.isfinite(r.y_px) and not r.flags & UNFITTED_FLAGS
+            and np.isfinite(r.zenith_deg) and 0.0 <= r.zenith_deg < 90.0 and np.isfinite(r.azimuth_body_deg)]
+    column = lambda name: np.array([getattr(r, name) for r in rows], dtype=float)  # noqa: E731
+    return BenchData(column("zenith_deg"), column("azimuth_body_deg"), column("x_px"), column("y_px"),
+                     repeat=np.array([r.repeat for r in rows], dtype=int))
+
+
+def _stage_point(stage: str, zenith_deg: float, azimuth_deg: float, repeats: int) -> Point:
+    # the design's body zenith is set as the stage angle Ω: eq. 8 moves it by < 1° on a bench whose source is
+    # metres away, and the poses stay independent of the bench file, so preflight checks what the run visits
+    azimuth, omega = round(float(azimuth_deg), 3), round(float(zenith_deg), 3)
+    return Point(point_key(stage, azimuth, omega), stage, azimuth, omega, repeats)
+
+
+def physical_plan(procedure: PhysicalProcedure, *, full_scale_dn: float = 1023.0,
+                  timing: TimingModel = TimingModel()) -> Plan:
+    """The physical model's procedure (issue 9): light up, then measure D-optimal directions batch by batch.
+
+    1. Light up and auto-exposure at normal incidence, as seed 003 §4.2 step 0.
+    2. Batch 1: the first `first_batch` directions of the greedy D-optimal design (normal incidence first,
+       where the table already is) and the `check_directions` check directions, in the order of a short
+       table tour (:func:`calibration.design_of_experiments.order_tour` with `timing`'s axis speeds).
+    3. After each batch, :func:`calibration.design_of_experiments.stopping_decision` fits the physical model to
+       the fit directions measured so far and scores it on the check directions, which it never fits. The
+       decision is recorded (``physical_batch_<k>``) and logged; the run stops once every parameter's 1σ is
+       below its target and the check RMS is at most `check_rms_target_deg`.
+    4. Otherwise the next `batch_size` directions of the design, toured from where the table is, up to
+       `max_batches` batches. The final decision is recorded as ``physical_stop``.
+
+    In preflight the readings have no spot, so nothing is fitted and the plan expands to every batch: its
+    counts and duration are the upper bound (the plan says so with :class:`MayStopEarly`).
+
+    References
+    ----------
+    Atkinson, Donev & Tobias, *Optimum Experimental Designs* (2007), ch. 12 and 17 (sequential locally
+    D-optimal designs); seed 003 §4.2 (the grid it replaces: 80 poses, 312 frames).
+    """
+    design = design_experiment(first_batch=procedure.first_batch, batch_size=procedure.batch_size,
+                               max_batches=procedure.max_batches, n_check=procedure.check_directions,
+                               zenith_max_deg=procedure.zenith_max_deg, zenith_step_deg=procedure.zenith_step_deg,
+                               azimuth_step_deg=procedure.azimuth_step_deg, margin_px=procedure.edge_margin_px)
+    targets = {**parameter_targets(procedure.parameter_budget_deg, zenith_max_deg=procedure.zenith_max_deg),
+               **procedure.parameter_targets}
+    n_batches = len(design.batches)
+    yield Log(f"physical procedure: at most {design.n_fit} D-optimal directions in {n_batches} batch(es) and "
+              f"{design.n_check} check directions, {procedure.repeats} frames each; it stops once every "
+              f"parameter's 1σ is below its target and the check RMS is ≤ {procedure.check_rms_target_deg}°")
+    yield MayStopEarly(f"the physical plan stops after the first of its {n_batches} batches whose fit meets the "
+                       "targets")
+    yield Record("physical_design", {
+        "fit_directions_deg": [[float(z), float(a)] for z, a in zip(design.zenith_deg, design.azimuth_deg)],
+        "check_directions_deg": [[float(z), float(a)] for z, a in zip(design.check_zenith_deg,
+                                                                      design.check_azimuth_deg)],
+        "batches": [list(b) for b in design.batches], "log_det": list(design.log_det),
+        "parameter_targets": targets, "check_rms_target_deg": procedure.check_rms_target_deg})
+    yield from _light_up(procedure.auto_exposure, full_scale_dn)
+    fit_readings, check_readings = [], []
+    pose = (0.0, 0.0)  # the light-up leaves the table at normal incidence
+    for number, (first, end) in enumerate(design.batches, start=1):
+        points = [_stage_point("physical", z, a, procedure.repeats)
+                  for z, a in zip(design.zenith_deg[first:end], design.azimuth_deg[first:end])]
+        if number == 1:
+            points += [_stage_point("check", z, a, procedure.repeats)
+                       for z, a in zip(design.check_zenith_deg, design.check_azimuth_deg)]
+        poses = [(p.azimuth_deg, p.zenith_stage_deg) for p in points]
+        for index in order_tour(poses, pose, rates_deg_s=timing.rates_deg_s, accels_deg_s2=timing.accels_deg_s2,
+                                settle_s=timing.settle_s):
+            point = points[index]
+            readings = yield Measure(point)
+            # keep the centroids, not the frames (0.6 MB each): the whole plan's would be ~100 MB
+            kept = [dataclasses.replace(r, frame=None) for r in readings]
+            (check_readings if point.stage == "check" else fit_readings).extend(kept)
+            pose = poses[index]
+        decision = stopping_decision(bench_data_of(fit_readings), bench_data_of(check_readings),
+                                     check_rms_target_deg=procedure.check_rms_target_deg, targets=targets)
+        yield Record(f"physical_batch_{number}", decision.to_dict())
+        yield Log(f"batch {number}/{n_batches}: {decision.summary()}")
+        if decision.stop:
+            break
+    final = decision.to_dict()  # the design has at least one batch
+    if decision.stop:
+        final["reason"] = "targets met"
+        message = f"stopped after batch {number} of {n_batches}: every target met"
+    else:
+        final["reason"] = "cap reached"
+        message = (f"all {n_batches} batches measured (the cap) without meeting every target: "
+                   + "; ".join(decision.reasons))
+    final["batches_measured"] = number
+    yield Record("physical_stop", final)
+    yield Log(message)
+    yield CloseShutter()
+
+
+def make_plan(campaign: Campaign, *, full_scale_dn: float = 1023.0, timing: TimingModel | None = None) -> Plan:
+    """The plan a campaign names. `timing` (the table's axis speeds) orders the physical plan's tour."""
     if campaign.plan == "seed003":
         return seed003_plan(campaign.seed003, full_scale_dn=full_scale_dn)
+    if campaign.plan == "physical":
+        return physical_plan(campaign.physical, full_scale_dn=full_scale_dn, timing=timing or TimingModel())
     return grid_plan(campaign.grid, full_scale_dn=full_scale_dn)
+
+
+def procedure_auto_exposure(campaign: Campaign) -> AutoExposure:
+    """The auto-exposure settings of the procedure the campaign runs (preflight answers at its target)."""
+    procedures = {"seed003": campaign.seed003, "grid": campaign.grid, "physical": campaign.physical}
+    return procedures[campaign.plan].auto_exposure

@@ -7,12 +7,13 @@ every violation, before anything moves (research note anchors-orchestration, les
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
+from calibration.design_of_experiments import move_time_s
 from drivers.errors import LimitError
-from drivers.sim.motion import trapezoid
 
-from .messages import Capture, Measure, Move, Plan, Point, Reading, SetExposure, WaitWarm
+from .messages import Capture, MayStopEarly, Measure, Move, Plan, Point, Reading, SetExposure, WaitWarm
 
 
 @dataclass(frozen=True)
@@ -22,13 +23,17 @@ class TimingModel:
     Attributes
     ----------
     rate_deg_s, accel_deg_s2 : float
-        Table axes' speed [°/s] and acceleration [°/s²] (both axes move together).
+        Zenith axis's speed [°/s] and acceleration [°/s²], and the azimuth axis's unless given apart.
     settle_s : float
         Settling after a move [s].
     frame_overhead_s : float
         Read-out, transfer and centroid per frame, beyond the exposure [s].
     warmup_s : float
         Lamp warm-up from cold [s].
+    azimuth_rate_deg_s, azimuth_accel_deg_s2 : float or None
+        The azimuth axis's speed and acceleration when they differ from the zenith axis's.
+
+    The two axes move at once: a move takes the slower axis's trapezoidal move plus `settle_s`.
     """
 
     rate_deg_s: float = 10.0
@@ -36,6 +41,42 @@ class TimingModel:
     settle_s: float = 0.05
     frame_overhead_s: float = 0.02
     warmup_s: float = 0.0
+    azimuth_rate_deg_s: float | None = None
+    azimuth_accel_deg_s2: float | None = None
+
+    @property
+    def rates_deg_s(self) -> tuple[float, float]:
+        """(azimuth, zenith) speeds [°/s]."""
+        return (self.rate_deg_s if self.azimuth_rate_deg_s is None else self.azimuth_rate_deg_s, self.rate_deg_s)
+
+    @property
+    def accels_deg_s2(self) -> tuple[float, float]:
+        """(azimuth, zenith) accelerations [°/s²]."""
+        return (self.accel_deg_s2 if self.azimuth_accel_deg_s2 is None else self.azimuth_accel_deg_s2,
+                self.accel_deg_s2)
+
+    def move_s(self, start, end) -> float:
+        """Duration of a table move between poses (azimuth_deg, zenith_stage_deg), settling included [s]."""
+        return float(move_time_s(start, end, self.rates_deg_s, self.accels_deg_s2, self.settle_s))
+
+
+def timing_from_table(table, base: TimingModel = TimingModel()) -> TimingModel:
+    """`base` with the axes' speed and acceleration the connected table reports
+    (:meth:`drivers.interfaces.RotaryTable.expected_motion`); what the table cannot tell stays `base`'s.
+
+    A table that cannot be asked (a failing port) leaves the estimate at `base`: an estimate is no reason to
+    refuse a campaign.
+    """
+    try:
+        azimuth, zenith = table.expected_motion()
+    except Exception:  # noqa: BLE001 - see the docstring
+        return base
+    zenith_rate = zenith.rate_deg_s if zenith and zenith.rate_deg_s > 0 else base.rate_deg_s
+    zenith_accel = zenith.accel_deg_s2 if zenith and zenith.accel_deg_s2 else base.accel_deg_s2
+    azimuth_rate = azimuth.rate_deg_s if azimuth and azimuth.rate_deg_s > 0 else base.rates_deg_s[0]
+    azimuth_accel = azimuth.accel_deg_s2 if azimuth and azimuth.accel_deg_s2 else base.accels_deg_s2[0]
+    return dataclasses.replace(base, rate_deg_s=zenith_rate, accel_deg_s2=zenith_accel,
+                               azimuth_rate_deg_s=azimuth_rate, azimuth_accel_deg_s2=azimuth_accel)
 
 
 @dataclass(frozen=True)
@@ -53,6 +94,11 @@ class PreflightReport:
         Estimated duration [s].
     violations : list of str
         Every move outside the limits and every other refusal; empty when the plan may run.
+    warmup_s : float
+        Of `duration_s`, the lamp's warm-up [s] (nothing when the lamp already burns).
+    upper_bound : str or None
+        Why the counts and the duration are upper bounds (a plan with a stopping rule, expanded to its cap),
+        None when they are what the run will do.
     """
 
     points: list[Point]
@@ -60,6 +106,8 @@ class PreflightReport:
     n_moves: int
     duration_s: float
     violations: list[str] = field(default_factory=list)
+    warmup_s: float = 0.0
+    upper_bound: str | None = None
 
     @property
     def ok(self) -> bool:
@@ -101,8 +149,7 @@ def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_pea
                 violations.append(f"{label} (azimuth {azimuth:g}°, zenith stage {zenith:g}°): {exc}")
         if (azimuth, zenith) != pose:
             n_moves += 1
-            duration += max(trapezoid(azimuth - pose[0], timing.rate_deg_s, timing.accel_deg_s2),
-                            trapezoid(zenith - pose[1], timing.rate_deg_s, timing.accel_deg_s2)) + timing.settle_s
+            duration += timing.move_s(pose, (azimuth, zenith))
             pose = (azimuth, zenith)
 
     def frames(n):
@@ -111,6 +158,8 @@ def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_pea
         duration += n * (exposure / 1000.0 + timing.frame_overhead_s)
         return [Reading(i, float("nan"), float("nan"), dry_peak_dn, 0, 0, "ok") for i in range(n)]
 
+    warmup = 0.0
+    upper_bound = None
     answer = None
     while True:
         try:
@@ -130,7 +179,10 @@ def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_pea
             exposure = answer = msg.exposure_ms
         elif isinstance(msg, WaitWarm):
             duration += timing.warmup_s
+            warmup += timing.warmup_s
+        elif isinstance(msg, MayStopEarly):
+            upper_bound = msg.reason
     keys = [p.key for p in points]
     if len(set(keys)) != len(keys):
         violations.append("plan error: a point key appears twice")
-    return PreflightReport(points, n_frames, n_moves, duration, violations)
+    return PreflightReport(points, n_frames, n_moves, duration, violations, warmup, upper_bound)

@@ -32,6 +32,22 @@ class Limits:
             raise LimitError(device, f"{angle_deg}° is outside the soft limits [{self.low_deg}, {self.high_deg}]°")
 
 
+@dataclass(frozen=True)
+class AxisMotion:
+    """How fast an axis moves, for estimating how long a plan takes.
+
+    Attributes
+    ----------
+    rate_deg_s : float
+        Top speed of a move [°/s].
+    accel_deg_s2 : float or None
+        Acceleration [°/s²]; None when the controller does not say.
+    """
+
+    rate_deg_s: float
+    accel_deg_s2: float | None = None
+
+
 class RotaryAxis(ABC):
     """One rotation axis of a bench table (Thorlabs APT stage, Newport SMC100, manual stage …).
 
@@ -78,6 +94,11 @@ class RotaryAxis(ABC):
     def identify(self) -> str:
         """Model, serial and firmware as the controller reports them."""
 
+    def expected_motion(self) -> AxisMotion | None:
+        """Speed and acceleration of the axis's moves, from the controller or its configuration; None when the
+        axis cannot say (a manual stage). Used only for estimates: nothing moves."""
+        return None
+
     def wait_until_stopped(self, *, timeout_s: float = 120.0) -> float:
         """Poll until the axis stops; a stalled axis that still answers raises :class:`DeviceTimeout`."""
         deadline = time.monotonic() + timeout_s
@@ -118,6 +139,10 @@ class RotaryTable(ABC):
 
     @abstractmethod
     def identify(self) -> str: ...
+
+    def expected_motion(self) -> tuple[AxisMotion | None, AxisMotion | None]:
+        """(azimuth, zenith) speed and acceleration of moves, each None when the table cannot say."""
+        return None, None
 
 
 class TwoAxisTable(RotaryTable):
@@ -162,6 +187,9 @@ class TwoAxisTable(RotaryTable):
 
     def identify(self):
         return f"azimuth: {self.azimuth.identify()}; zenith: {self.zenith.identify()}"
+
+    def expected_motion(self):
+        return self.azimuth.expected_motion(), self.zenith.expected_motion()
 
 
 @dataclass(frozen=True)

@@ -60,7 +60,7 @@ import re
 import time
 
 from .errors import DeviceFault, DeviceTimeout, ProtocolError
-from .interfaces import Limits, RotaryTable
+from .interfaces import AxisMotion, Limits, RotaryTable
 from .transport import Port
 
 log = logging.getLogger(__name__)
@@ -252,13 +252,18 @@ class LX200Table(RotaryTable):
         twice the seed 002 table's 1′ pointing.
     home_deg : (float, float)
         (azimuth, zenith) pose that :meth:`home` moves to [°].
+    slew_rate_deg_s, slew_accel_deg_s2 : float or None
+        The mount's slew speed [°/s] and acceleration [°/s²] for duration estimates; the LX200 protocol cannot
+        be asked for them (``:Sw`` only sets the largest rate on Autostar II mounts), so they are configured
+        values; None = unknown.
     """
 
     def __init__(self, port: Port, azimuth_limits: Limits, zenith_limits: Limits, *, name: str | None = None,
                  high_precision: bool | None = True, degree_sign: str = "*", seconds_sign: str = "'",
                  nak_retries: int = 5, nak_wait_s: float = 0.05, nak_window_s: float = 0.015, retries: int = 1,
                  poll_s: float = 0.05, arrival_tolerance_deg: float = 2.0 / 60.0,
-                 home_deg: tuple[float, float] = (0.0, 0.0)):
+                 home_deg: tuple[float, float] = (0.0, 0.0), slew_rate_deg_s: float | None = None,
+                 slew_accel_deg_s2: float | None = None):
         if not (isinstance(azimuth_limits, Limits) and isinstance(zenith_limits, Limits)):
             raise TypeError("`azimuth_limits` and `zenith_limits` must be Limits")
         if zenith_limits.low_deg < -90 or zenith_limits.high_deg > 90:
@@ -278,6 +283,7 @@ class LX200Table(RotaryTable):
         self.retries, self.poll_s = retries, poll_s
         self.arrival_tolerance_deg = arrival_tolerance_deg
         self.home_deg = home_deg
+        self.slew_rate_deg_s, self.slew_accel_deg_s2 = slew_rate_deg_s, slew_accel_deg_s2
         self.high_precision: bool | None = None  # None until a :GA#/:GZ# reply shows the format
         self._target: tuple[float, float] | None = None  # (azimuth, zenith) of the move in progress
 
@@ -536,6 +542,13 @@ class LX200Table(RotaryTable):
                 raise DeviceFault(self.name, f"stopped at ({position[0]:.4f}, {position[1]:.4f})°, target "
                                              f"({target[0]:.4f}, {target[1]:.4f})°: limit or obstruction?")
         return position
+
+    def expected_motion(self) -> tuple[AxisMotion | None, AxisMotion | None]:
+        """The configured slew speed for both axes (the mount slews them together); (None, None) if unknown."""
+        if self.slew_rate_deg_s is None:
+            return None, None
+        motion = AxisMotion(self.slew_rate_deg_s, self.slew_accel_deg_s2)
+        return motion, motion
 
     def stop(self) -> None:
         """Halt all slewing with ``:Q#`` (no reply, anchors-protocols §1.3)."""

@@ -27,7 +27,7 @@ import time
 from dataclasses import dataclass
 
 from .errors import DeviceFault, DeviceTimeout, LimitError, ProtocolError
-from .interfaces import Limits, RotaryAxis
+from .interfaces import AxisMotion, Limits, RotaryAxis
 from .transport import Port, ask_again, open_port
 
 log = logging.getLogger(__name__)
@@ -328,6 +328,10 @@ class Smc100Axis(RotaryAxis):
     def velocity_deg_s(self) -> float:
         """Move velocity [°/s] (VA?)."""
         return self._ask("VA?", float)
+
+    def expected_motion(self) -> AxisMotion:
+        """The move velocity the controller holds (VA?); the acceleration (AC) is not asked: None."""
+        return AxisMotion(self.velocity_deg_s(), None)
 
     def set_velocity_deg_s(self, velocity_deg_s: float) -> None:
         """Set the move velocity [°/s] (VA); the controller checks the range (TE 'C')."""

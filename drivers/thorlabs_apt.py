@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 
 from .errors import DeviceDisconnected, DeviceFault, DeviceTimeout, LimitError, ProtocolError
-from .interfaces import Limits, RotaryAxis
+from .interfaces import AxisMotion, Limits, RotaryAxis
 from .transport import Port, open_port
 
 log = logging.getLogger(__name__)
@@ -753,6 +753,11 @@ class AptRotationStage(RotaryAxis):
         reply = self._query(pack_short(Msg.MOT_REQ_VELPARAMS, self.channel, dest=self.dest), Msg.MOT_GET_VELPARAMS)
         _, _, accel, max_velocity = parse_velparams(reply.data)
         return max_velocity / self.velocity_scale, accel / self.accel_scale
+
+    def expected_motion(self) -> AxisMotion:
+        """The stage's move velocity and acceleration as the controller holds them (MOT_REQ_VELPARAMS)."""
+        rate, accel = self.velocity_params()
+        return AxisMotion(rate, accel)
 
     def set_velocity_params(self, max_velocity_deg_s: float, accel_deg_s2: float) -> None:
         """Set the move velocity [°/s] and acceleration [°/s²] (MOT_SET_VELPARAMS).
