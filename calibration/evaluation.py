@@ -141,6 +141,8 @@ def holdout_predictions(method: str, data: BenchData, design: SensorDesign = DEF
     seed 003, Table 4.1 (its columns, here held out rather than at the nodes).
     """
     groups = data.azimuth_groups() if by == "azimuth" else zenith_rings(data)
+    if by != "azimuth":
+        fit_options = {**METHODS[method].ring_out_options, **fit_options}
     labels = sorted(set(groups[groups >= 0].tolist()))
     if by != "azimuth":
         if not labels:

@@ -26,6 +26,8 @@ class Calibration(ABC):
 
     method: ClassVar[str]
     min_points: ClassVar[int]
+    #: Extra fit options for the leave-one-zenith-ring-out evaluation (see calibration.evaluation).
+    ring_out_options: ClassVar[dict] = {}
 
     @classmethod
     @abstractmethod

@@ -143,8 +143,13 @@ class Seed003Calibration(Calibration):
     azimuth_slope: float
     azimuth_offset_deg: float
 
+    #: Options of the leave-one-zenith-ring-out fits: a 6th-order θ(r) is still determined by 6 rings, since
+    #: the radii of one ring spread with azimuth (pinhole offset, tilt), and that is the only way to score the
+    #: method between rings on seed 003's 7-ring grid (calibration.evaluation).
+    ring_out_options: ClassVar[dict] = {"min_zeniths": ZENITH_ORDER}
+
     @classmethod
-    def _fit_common(cls, data: BenchData):
+    def _fit_common(cls, data: BenchData, min_zeniths: int = ZENITH_ORDER + 1):
         data.require_spread(min_points=cls.min_points, method=cls.method)
         x0, y0 = centre_from_normal_incidence(data, cls.method)
         r = spot_radius_px(data.x_px, data.y_px, x0, y0)  # seed 003 eq. 7
@@ -152,7 +157,7 @@ class Seed003Calibration(Calibration):
         off = ~data.normal_incidence
         b1, b0 = fit_azimuth_linear(meas[off], data.azimuth_deg[off])
         n_zenith = np.unique(np.round(data.zenith_deg, 3)).size
-        if n_zenith <= ZENITH_ORDER:
+        if n_zenith < min_zeniths:
             raise InsufficientDataError(
                 f"{cls.method}: the 6th-order θ(r) needs at least {ZENITH_ORDER + 1} distinct zenith angles, "
                 f"the data have {n_zenith}", column="zenith_deg")
@@ -160,8 +165,9 @@ class Seed003Calibration(Calibration):
         return x0, y0, r, meas, b1, b0, scale
 
     @classmethod
-    def fit(cls, data: BenchData, design: SensorDesign = DEFAULT_SENSOR) -> "Seed003Calibration":
-        x0, y0, r, _, b1, b0, scale = cls._fit_common(data)
+    def fit(cls, data: BenchData, design: SensorDesign = DEFAULT_SENSOR, *,
+            min_zeniths: int = ZENITH_ORDER + 1) -> "Seed003Calibration":
+        x0, y0, r, _, b1, b0, scale = cls._fit_common(data, min_zeniths)
         coef, _ = fit_zenith_polynomial(r, data.zenith_deg, radius_scale_px=scale)
         return cls(x0, y0, tuple(coef), scale, b1, b0)
 
@@ -196,8 +202,9 @@ class Seed003TiltCalibration(Seed003Calibration):
     tilt_y_deg: float = 0.0
 
     @classmethod
-    def fit(cls, data: BenchData, design: SensorDesign = DEFAULT_SENSOR) -> "Seed003TiltCalibration":
-        x0, y0, r, meas, b1, b0, scale = cls._fit_common(data)
+    def fit(cls, data: BenchData, design: SensorDesign = DEFAULT_SENSOR, *,
+            min_zeniths: int = ZENITH_ORDER + 1) -> "Seed003TiltCalibration":
+        x0, y0, r, meas, b1, b0, scale = cls._fit_common(data, min_zeniths)
         azimuth = np.radians(np.mod(b1 * meas + b0, 360.0))
         coef, (c, s) = fit_zenith_polynomial(r, data.zenith_deg, radius_scale_px=scale,
                                              extra_columns=np.column_stack([np.cos(azimuth), np.sin(azimuth)]))
@@ -240,14 +247,15 @@ class Seed003SectorCalibration(Seed003Calibration):
     sector_radius_max_px: tuple = ()
 
     @classmethod
-    def fit(cls, data: BenchData, design: SensorDesign = DEFAULT_SENSOR) -> "Seed003SectorCalibration":
-        x0, y0, r, _, b1, b0, scale = cls._fit_common(data)
+    def fit(cls, data: BenchData, design: SensorDesign = DEFAULT_SENSOR, *,
+            min_zeniths: int = ZENITH_ORDER + 1) -> "Seed003SectorCalibration":
+        x0, y0, r, _, b1, b0, scale = cls._fit_common(data, min_zeniths)
         pooled, _ = fit_zenith_polynomial(r, data.zenith_deg, radius_scale_px=scale)
         sectors, reach = [], []
         for k in range(8):
             from_lo = np.mod(data.azimuth_deg - k * SECTOR_DEG, 360.0)
             inside = (from_lo <= SECTOR_DEG + 0.5) | (from_lo >= 360.0 - 0.5) | data.normal_incidence
-            if np.unique(np.round(data.zenith_deg[inside], 3)).size <= ZENITH_ORDER:
+            if np.unique(np.round(data.zenith_deg[inside], 3)).size < min_zeniths:
                 sectors.append(())
                 reach.append(0.0)
                 continue

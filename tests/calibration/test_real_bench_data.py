@@ -71,19 +71,22 @@ def test_clean_data_reach_the_noise_floor_and_say_so(clean):
     assert clean.rejected == [] and clean.warnings == []
 
 
-@pytest.mark.parametrize("method", ["physical", "physical-mask"])
+@pytest.mark.parametrize("method", ["physical", "physical-mask", "seed003", "seed003-tilt"])
 def test_printed_heldout_is_within_one_and_a_half_times_the_error_on_random_directions(clean, method):
-    """Held-out points carry the centroid noise of a 4-frame mean, so the random directions are measured alike."""
+    """Held-out points carry the centroid noise of a 4-frame mean, so the random directions are measured alike.
+    The seed 003 polynomials oscillate between the 50° and 60° rings (0.6° at 55°): only leaving a ring out
+    sees it, and the printed figure is the worse scheme's."""
     r = report(clean, method)
     truth = true_error_deg(r.calibration, noise_px=NOISE_PX / 2)
     assert r.heldout_azimuth and r.heldout_ring  # both schemes scored
     assert truth / 1.5 <= r.heldout.rms_vector_deg <= 1.5 * truth, (r.heldout.rms_vector_deg, truth)
 
 
-def test_a_method_that_cannot_be_scored_between_rings_says_so_and_is_not_preferred(clean):
-    r = report(clean, "seed003")
-    assert r.heldout_ring is None and "between zenith rings it cannot be scored" in r.error
-    assert clean.chosen.heldout_ring is not None
+def test_the_sector_method_held_out_errs_on_the_safe_side(clean):
+    """Eight sector polynomials with a ring left out have two azimuths each to go on: the figure is pessimistic
+    (about 3× the error on random directions here), never optimistic."""
+    r = report(clean, "seed003-sector")
+    assert r.heldout.rms_vector_deg >= true_error_deg(r.calibration, noise_px=NOISE_PX / 2)
 
 
 # --- glints ------------------------------------------------------------------------------------------------
