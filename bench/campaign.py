@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from typing import Literal
 
+import numpy as np
+
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from calibration.models import METHODS
@@ -19,8 +21,28 @@ class CampaignFileError(Exception):
     """A campaign file that cannot be used; the message names the file and the field."""
 
 
+#: Limits that keep one campaign (or one dry-run request) from exhausting the machine: a seed 003 run has 80
+#: points, a flight batch 10 sensors.
+MAX_POINTS_PER_SENSOR = 5000
+MAX_LIST = 500
+MAX_SENSORS = 100
+
+
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # no NaN or infinity anywhere (`start_ms: .inf` is not an exposure)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_bool_for_a_number(cls, value, info):
+        # JSON's true is not the number 1: refuse it where a number is expected
+        annotation = cls.model_fields[info.field_name].annotation
+        if isinstance(value, bool) and annotation in (int, float):
+            raise ValueError("must be a number, not true/false")
+        if isinstance(value, (list, tuple)) and any(isinstance(v, bool) for v in value) \
+                and annotation in (tuple[float, ...], tuple[int, ...]):
+            raise ValueError("must be numbers, not true/false")
+        return value
 
 
 class AutoExposure(_Strict):
@@ -38,8 +60,8 @@ class AutoExposure(_Strict):
 class Seed003Procedure(_Strict):
     """The seed 003 calibration procedure (§4.2 and the revised §4.4–4.5)."""
 
-    azimuth_step_deg: float = Field(45.0, gt=0, le=180)
-    zenith_stage_deg: tuple[float, ...] = (0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0)
+    azimuth_step_deg: float = Field(45.0, ge=0.5, le=180)
+    zenith_stage_deg: tuple[float, ...] = Field((0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0), max_length=MAX_LIST)
     repeats: int = Field(4, ge=1, le=100)
     centre_repeats: int = Field(5, ge=1, le=100)
     tilt_stage: bool = True
@@ -58,8 +80,10 @@ class Seed003Procedure(_Strict):
 class GridProcedure(_Strict):
     """A plain grid: every azimuth at every zenith-stage angle."""
 
-    azimuths_deg: tuple[float, ...] = tuple(float(a) for a in range(0, 360, 45))
-    zenith_stage_deg: tuple[float, ...] = (0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0)
+    azimuths_deg: tuple[float, ...] = Field(tuple(float(a) for a in range(0, 360, 45)), min_length=1,
+                                            max_length=MAX_LIST)
+    zenith_stage_deg: tuple[float, ...] = Field((0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0), min_length=1,
+                                                max_length=MAX_LIST)
     repeats: int = Field(1, ge=1, le=100)
     order: Literal["zenith-outer", "azimuth-outer"] = "zenith-outer"
     auto_exposure: AutoExposure = AutoExposure()
@@ -122,7 +146,7 @@ class Campaign(_Strict):
     name: str = Field(min_length=1)
     plan: Literal["seed003", "grid", "physical"] = "seed003"
     operator: str = "unknown"
-    sensors: tuple[str, ...] = Field(("SIM-0001",), min_length=1)
+    sensors: tuple[str, ...] = Field(("SIM-0001",), min_length=1, max_length=MAX_SENSORS)
     frames: Literal["roi", "full", "none"] = "roi"
     seed003: Seed003Procedure = Seed003Procedure()
     grid: GridProcedure = GridProcedure()
@@ -143,6 +167,25 @@ class Campaign(_Strict):
         if len(set(self.sensors)) != len(self.sensors):
             raise ValueError("`sensors` lists a sensor twice")
         return self
+
+    @model_validator(mode="after")
+    def _points_within_the_cap(self):
+        # counted from the fields, before any plan is expanded, so a huge request costs nothing
+        points = self.planned_points()
+        if points > MAX_POINTS_PER_SENSOR:
+            raise ValueError(f"the {self.plan} plan would measure {points} points per sensor; the limit is "
+                             f"{MAX_POINTS_PER_SENSOR} (a seed 003 run has 80): use fewer azimuths or zeniths")
+        return self
+
+    def planned_points(self) -> int:
+        """Points per sensor the plan will measure at most, from its fields alone."""
+        if self.plan == "seed003":
+            p = self.seed003
+            azimuths = int(np.ceil(360.0 / p.azimuth_step_deg - 1e-9))
+            return azimuths * (1 + 2 * p.tilt_stage + len(p.zenith_stage_deg))
+        if self.plan == "grid":
+            return len(self.grid.azimuths_deg) * len(self.grid.zenith_stage_deg)
+        return self.physical.max_points
 
 
 def load_campaign_file(path) -> Campaign:

@@ -311,7 +311,7 @@ def serve_simulators(
                                                                      "section); default: the simulated bench of examples/bench-sim.yaml."),
     host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
     port: int = typer.Option(0, help="First TCP port (devices get consecutive ports); 0 = any free ports."),
-    time_scale: Optional[float] = typer.Option(None, "--time-scale", min=0.0,
+    time_scale: Optional[float] = typer.Option(None, "--time-scale", min=0.0, max=1000.0,
                                                help="Override the simulated clock (0 = instant)."),
 ) -> None:
     """Serve every simulated device of the bench on a TCP port and print their URLs."""

@@ -177,7 +177,7 @@ def read_bench_csv(path, *, bench: BenchGeometry | None = None, sensor_id: str |
             sensor_id = distinct[0]
     elif sensor_id is not None:
         raise DataFileError(table.path, f"has no sensor_id column, so it cannot select sensor {sensor_id!r}")
-    x, y = table.numbers("x_px"), table.numbers("y_px")
+    x, y = (_pixels(table, name) for name in SPOT_COLUMNS)
     if stage:
         if bench is None:
             raise DataFileError(table.path, "has stage angles; the bench geometry is needed to convert them")
@@ -280,11 +280,26 @@ def write_bench_csv(path, data: BenchData) -> None:
             w.writerow(row)
 
 
+#: Largest spot coordinate a file may hold [px]: any real detector is far smaller.
+MAX_PIXEL = 1e6
+
+
+def _pixels(table: CsvTable, name: str) -> np.ndarray:
+    """A spot-coordinate column, every value within ±:data:`MAX_PIXEL`."""
+    values = table.numbers(name)
+    bad = np.flatnonzero(np.abs(values) > MAX_PIXEL)
+    if bad.size:
+        i = int(bad[0])
+        raise DataFileError(table.path, f"{values[i]:g} px is out of range (|value| ≤ {MAX_PIXEL:g})", row=i + 1,
+                            line=table.lines[i], column=name)
+    return values
+
+
 def read_spots_csv(path) -> tuple[CsvTable, np.ndarray, np.ndarray]:
     """A CSV with at least `x_px, y_px`; returns the table (to repeat its columns) and the two columns."""
     table = read_csv_table(path)
     _require(table, SPOT_COLUMNS)
-    return table, table.numbers("x_px"), table.numbers("y_px")
+    return table, _pixels(table, "x_px"), _pixels(table, "y_px")
 
 
 def write_applied_csv(path, table: CsvTable, zenith_deg, azimuth_deg) -> None:
@@ -354,6 +369,8 @@ def read_calibration(path) -> tuple[Calibration, dict]:
         raise DataFileError(path, "no such file") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise DataFileError(path, f"not a JSON calibration file ({exc})") from None
+    except RecursionError:
+        raise DataFileError(path, "not a calibration file (JSON nested too deeply)") from None
     try:
         return calibration_from_dict(document), document
     except CalibrationFormatError as exc:

@@ -13,18 +13,23 @@ seed 003, §3.2 and §6: the direction algorithm with its calibration parameters
 
 from __future__ import annotations
 
+import math
 import re
 
 from .geometry import combined_tilt
 from .models import Calibration
 from .design import SensorDesign
+from .errors import CalibrationError
 from .models.physical import PhysicalCalibration
 from .models.seed003 import Seed003Calibration, Seed003SectorCalibration, Seed003TiltCalibration
 from .pinhole import detector_rotation
 
 
 def _num(value: float) -> str:
-    return repr(float(value))
+    value = float(value)
+    if not math.isfinite(value):  # a C header with `nan` compiles and answers garbage on the satellite
+        raise CalibrationError(f"the calibration holds a non-finite coefficient ({value}); no C header written")
+    return repr(value)
 
 
 def _array(values) -> str:

@@ -57,10 +57,72 @@ class Calibration(ABC):
         if missing or unknown:
             raise CalibrationFormatError(
                 f"{cls.method} calibration: missing parameters {missing}, unknown parameters {unknown}")
+        kinds = {f.name: str(f.type) for f in dataclasses.fields(cls)}
+        for name, value in parameters.items():
+            problem = _type_problem(kinds[name], value)
+            if problem:
+                raise CalibrationFormatError(f"{cls.method} calibration: parameter `{name}` {problem}")
         try:
             return cls(**{k: _restore(v) for k, v in parameters.items()})
         except (TypeError, ValueError) as exc:
             raise CalibrationFormatError(f"{cls.method} calibration: invalid parameters ({exc})") from exc
+
+
+#: Largest magnitude a stored number may have: far beyond any pixel coordinate or angle, far below overflow.
+_LARGEST = 1e9
+
+
+def _number_problem(value) -> str | None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return f"must be a number, got {json_type(value)}"
+    if value != value or abs(value) == float("inf"):
+        return f"must be a finite number, got {value}"
+    if abs(value) > _LARGEST:
+        return f"is out of range ({value:g}; |value| ≤ {_LARGEST:g})"
+    return None
+
+
+def json_type(value) -> str:
+    """The JSON name of a value's type, for messages."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "true/false"
+    if isinstance(value, str):
+        return "a string"
+    if isinstance(value, (list, tuple)):
+        return "a list"
+    if isinstance(value, dict):
+        return "an object"
+    return type(value).__name__
+
+
+def _type_problem(kind: str, value) -> str | None:
+    """What is wrong with a stored parameter for its declared field type, or None (numbers finite and bounded,
+    lists of numbers, objects of numbers)."""
+    if kind == "float" or kind == "int":
+        return _number_problem(value)
+    if kind == "bool":
+        return None if isinstance(value, bool) else f"must be true or false, got {json_type(value)}"
+    if kind == "dict":
+        if not isinstance(value, dict):
+            return f"must be an object, got {json_type(value)}"
+        for key, item in value.items():
+            problem = _number_problem(item)
+            if problem:
+                return f"entry {key!r} {problem}"
+        return None
+    if kind == "tuple":
+        if not isinstance(value, (list, tuple)):
+            return f"must be a list, got {json_type(value)}"
+        for item in value:
+            if isinstance(item, str):
+                continue  # names (the physical model's `fitted`)
+            problem = _type_problem("tuple", item) if isinstance(item, (list, tuple)) else _number_problem(item)
+            if problem:
+                return f"has an item that {problem}"
+        return None
+    return None
 
 
 def _plain(value):

@@ -120,6 +120,11 @@ class PhysicalCalibration(Calibration):
     fitted: tuple = FITTED
     residual_rms_px: float = float("nan")
 
+    def __post_init__(self) -> None:
+        if not self.pixel_pitch_mm > 0:
+            raise ValueError(f"`pixel_pitch_mm` must be positive, got {self.pixel_pitch_mm}")
+        self.build  # noqa: B018 - the build checks its own fields (positive gap, index >= 1 ...)
+
     @property
     def build(self) -> PinholeBuild:
         return PinholeBuild(self.x0_px, self.y0_px, self.gap_mm, self.glass_mm, self.glass_index,

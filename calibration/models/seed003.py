@@ -143,6 +143,13 @@ class Seed003Calibration(Calibration):
     azimuth_slope: float
     azimuth_offset_deg: float
 
+    def __post_init__(self) -> None:
+        if not self.radius_scale_px > 0:
+            raise ValueError(f"`radius_scale_px` must be positive, got {self.radius_scale_px}")
+        if len(self.zenith_coefficients) != ZENITH_ORDER + 1:
+            raise ValueError(f"`zenith_coefficients` must hold {ZENITH_ORDER + 1} numbers (eq. 9), got "
+                             f"{len(self.zenith_coefficients)}")
+
     #: Options of the leave-one-zenith-ring-out fits: a 6th-order θ(r) is still determined by 6 rings, since
     #: the radii of one ring spread with azimuth (pinhole offset, tilt), and that is the only way to score the
     #: method between rings on seed 003's 7-ring grid (calibration.evaluation).
