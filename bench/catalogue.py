@@ -792,7 +792,7 @@ class Catalogue:
             ``n_pixels``, ``flags`` (default 0), ``status`` ("ok", the default, or the centroid error name),
             ``frame_path`` (a file under :meth:`frames_dir`: absolute, or relative to :attr:`frames_root`),
             ``t_s`` [s] (bench-clock time of the frame, required).
-        started_utc : str or datetime, optional
+        started_utc : str, datetime or float (seconds since the epoch), optional
             When the point's measurement began; ``completed_utc`` is the time of recording.
 
         Returns
@@ -811,6 +811,8 @@ class Catalogue:
             azimuth_deg, zenith_stage_deg, zenith_deg, azimuth_body_deg))}
         # None: a sensor without an exposure setting (photodiodes) or one that did not report it
         pose["exposure_ms"] = None if exposure_ms is None else _finite(exposure_ms, f"point {key!r}: exposure_ms")
+        if isinstance(started_utc, (int, float)) and not isinstance(started_utc, bool):  # epoch seconds
+            started_utc = dt.datetime.fromtimestamp(started_utc, dt.timezone.utc)
         if isinstance(started_utc, dt.datetime):
             started_utc = _iso(started_utc)
         rows = [self._reading_row(i, reading, key) for i, reading in enumerate(readings)]

@@ -528,3 +528,14 @@ def test_a_killed_writer_leaves_only_whole_points(db, how):
         assert [p["key"] for p in points] == [f"p{i}" for i in range(len(points))]
         assert cat.mark_interrupted_runs() == [1]
         assert cat.run(1)["status"] == "crashed"
+
+
+def test_a_points_start_time_is_iso_8601_like_every_other_time(cat):
+    """The engine hands the start as seconds since the epoch; it is stored as UTC ISO 8601 (issue 10)."""
+    import datetime as dt
+
+    run_id = make_run(cat)
+    record(cat, run_id, "p1", started_utc=1795474241.28263)
+    point = cat.points(run_id)[0]
+    assert point["started_utc"] == "2026-11-23T22:50:41.282630Z"
+    assert dt.datetime.fromisoformat(point["completed_utc"].replace("Z", "+00:00")).tzinfo is not None
