@@ -21,7 +21,6 @@ from calibration.design import DEFAULT_SENSOR, SensorDesign
 from calibration.errors import CalibrationError
 from calibration.evaluation import CalibrationOutcome, MethodReport, StageFrames, calibrate
 from calibration.stage_geometry import GeometryPrior
-from calibration.export import c_header
 from calibration.models import METHODS, Calibration
 from calibration.models.physical import PhysicalCalibration
 from calibration.pinhole import PinholeBuild
@@ -33,8 +32,8 @@ from .benchfile import BenchFile, BenchFileError, load_bench_file
 from .campaign import CampaignFileError
 from .catalogue import CatalogueError
 from .runner import PreflightRefused, ResumeRefused
-from .datafile import (DataFileError, calibration_document, read_bench_frames, read_calibration, read_spots_csv,
-                       write_applied_csv, write_bench_csv, write_calibration)
+from .datafile import (DataFileError, calibration_document, header_from_document, read_bench_frames,
+                       read_calibration, read_spots_csv, write_applied_csv, write_bench_csv, write_calibration)
 
 app = typer.Typer(help="sunbench: sun-sensor calibration bench.", no_args_is_help=True, add_completion=False)
 fit_app = typer.Typer(help="Fit a calibration to bench data.", no_args_is_help=True)
@@ -233,13 +232,14 @@ def fit_cmos(
                   f"assumed seed 003's {DEFAULT_SENSOR.pixel_pitch_mm * 1000:g} µm — the gap and the glass scale "
                   "with it, the angles do not", highlight=False)
     out.print(f"{len(data)} frames from {escape(str(data_csv))}; method [bold]{calibration.method}[/]")
+    document = calibration_document(calibration, sensor_id=data.sensor_id, source=str(data_csv),
+                                    reports=outcome.reports, software=f"sunbench {_version()}", outcome=outcome,
+                                    design=design)
     if output:
-        write_calibration(output, calibration_document(
-            calibration, sensor_id=data.sensor_id, source=str(data_csv), reports=outcome.reports,
-            software=f"sunbench {_version()}", outcome=outcome, design=design))
+        write_calibration(output, document)
         out.print(f"calibration written to {escape(str(output))}")
     if header:
-        _write_text(header, c_header(calibration, sensor_id=data.sensor_id, design=design))
+        _write_text(header, header_from_document(document, calibration))
         out.print(f"C header written to {escape(str(header))}")
 
 
@@ -271,7 +271,7 @@ def export_header(
 ) -> None:
     """Export a calibration as a C header with `sunbench_sun_direction()` for the sensor's MCU."""
     calibration, document = read_calibration(calibration_json)
-    _write_text(output, c_header(calibration, sensor_id=document.get("sensor_id")))
+    _write_text(output, header_from_document(document, calibration))
     out.print(f"C header written to {escape(str(output))}")
 
 
@@ -296,11 +296,11 @@ def demo(
     print_outcome(outcome, calibration.method)
     if output_dir:
         write_bench_csv(output_dir / "bench-data.csv", data)
-        write_calibration(output_dir / "calibration.json",
-                          calibration_document(calibration, sensor_id=data.sensor_id, source="sunbench demo",
-                                               reports=outcome.reports, software=f"sunbench {_version()}",
-                                               outcome=outcome, design=DEFAULT_SENSOR))
-        _write_text(output_dir / "calibration.h", c_header(calibration, sensor_id=data.sensor_id))
+        document = calibration_document(calibration, sensor_id=data.sensor_id, source="sunbench demo",
+                                        reports=outcome.reports, software=f"sunbench {_version()}",
+                                        outcome=outcome, design=DEFAULT_SENSOR)
+        write_calibration(output_dir / "calibration.json", document)
+        _write_text(output_dir / "calibration.h", header_from_document(document, calibration))
         out.print(f"bench data, calibration and C header written to {escape(str(output_dir))}/")
 
 

@@ -354,6 +354,28 @@ def calibration_document(calibration: Calibration, *, sensor_id: str | None, sou
     return document
 
 
+def header_from_document(document: dict, calibration: Calibration | None = None) -> str:
+    """The C header of a calibration document, its opening comment naming the source (run or file), the
+    date, the software and the held-out accuracy, and its `#define`s the detector's design."""
+    from calibration.design import SensorDesign
+    from calibration.export import c_header
+
+    calibration = calibration or calibration_from_dict(document)
+    metrics = (document.get("metrics") or {}).get(calibration.method) or {}
+    heldout = (metrics.get("heldout") or {}).get("rms_vector_deg")
+    design = None
+    if isinstance(document.get("design"), dict):
+        try:
+            design = SensorDesign(**document["design"])
+        except (TypeError, ValueError):
+            design = None  # an old or foreign design block: the header goes without it
+    provenance = {"source": document.get("source"), "created": document.get("created_utc"),
+                  "software": document.get("software"),
+                  "held-out vector RMS": None if heldout is None else f"{heldout:.4f} deg "
+                  f"({metrics.get('heldout_scheme') or 'azimuth'} out)"}
+    return c_header(calibration, sensor_id=document.get("sensor_id"), design=design, provenance=provenance)
+
+
 def write_calibration(path, document: dict) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -89,6 +89,9 @@ def test_fit_writes_c_header(fitted):
     text = header.read_text()
     assert "sunbench_sun_direction" in text
     assert "SN-0042" in text
+    # the header says where it came from and how good it is
+    assert "source: " in text and "DATA.csv" in text and "software: sunbench" in text and "created: " in text
+    assert "held-out vector RMS: " in text
 
 
 def test_fit_with_method_seed003(workdir, bench_csv):

@@ -8,10 +8,9 @@ from pathlib import Path
 from fastapi import APIRouter, HTTPException
 from fastapi.responses import JSONResponse, PlainTextResponse
 
-from bench.datafile import write_bench_csv
+from bench.datafile import header_from_document, write_bench_csv
 from bench.runner import bench_data
 from calibration.errors import InsufficientDataError
-from calibration.export import c_header
 from calibration.models import calibration_from_dict
 
 from ..deps import READ, CatalogueDep
@@ -25,11 +24,16 @@ def _attachment(filename: str) -> dict:
 
 
 def _calibration_document(catalogue, run_id: int, method: str) -> dict:
-    catalogue.run(run_id)
-    matches = [c for c in catalogue.calibrations(run_id) if c["method"] == method]
+    """The stored document with what `sunbench fit` writes beside it: the created time, every method's metrics
+    and the run's provenance."""
+    run = catalogue.run(run_id)
+    records = catalogue.calibrations(run_id)
+    matches = [c for c in records if c["method"] == method]
     if not matches:
         raise HTTPException(404, f"run {run_id} has no {method} calibration")
-    return matches[-1]["document"]  # the latest, should the run have been fitted again
+    record = matches[-1]  # the latest, should the run have been fitted again
+    return {**record["document"], "created_utc": record["created_utc"],
+            "metrics": {c["method"]: c["metrics"] for c in records}, "provenance": run["provenance"]}
 
 
 @router.get("/runs/{run_id}/data.csv", response_class=PlainTextResponse, summary="Bench data CSV of a run",
@@ -62,7 +66,7 @@ def download_calibration_header(run_id: int, method: str, catalogue: CatalogueDe
     """A C header defining ``sunbench_sun_direction(x_px, y_px, &zenith, &azimuth)`` for the flight code."""
     document = _calibration_document(catalogue, run_id, method)
     try:
-        text = c_header(calibration_from_dict(document), sensor_id=document.get("sensor_id"))
+        text = header_from_document(document)
     except TypeError as exc:  # a method without a C export
         raise HTTPException(404, str(exc)) from None
     return PlainTextResponse(text, media_type="text/x-c", headers=_attachment(f"run-{run_id}-{method}.h"))
