@@ -133,13 +133,28 @@ class BenchData:
         if off.size == 0:
             return labels
         az = self.azimuth_deg[off]
-        order = np.argsort(az)
-        gaps = np.diff(az[order]) > tolerance_deg
-        group = np.concatenate([[0], np.cumsum(gaps)])
+        order, group = _chained_groups(az, tolerance_deg)
         # the circle closes: a group just below 360° is the same direction as the one at 0°
         if group[-1] > 0 and az[order][0] + 360.0 - az[order][-1] <= tolerance_deg:
             group[group == group[-1]] = 0
         labels[off[order]] = group
+        return labels
+
+    def zenith_rings(self, tolerance_deg: float = 0.5) -> np.ndarray:
+        """Label of the interior zenith ring of each point (−1 for normal incidence and the first and last
+        rings, whose leaving out would score extrapolation); labels are in order of zenith.
+
+        References
+        ----------
+        seed 003, §4.2 (the grid's zenith rings, 10° apart).
+        """
+        labels = np.full(len(self), -1, dtype=int)
+        off = np.flatnonzero(~self.normal_incidence)
+        if off.size == 0:
+            return labels
+        order, ring = _chained_groups(self.zenith_deg[off], tolerance_deg)
+        interior = (ring > 0) & (ring < ring[-1])
+        labels[off[order][interior]] = ring[interior]
         return labels
 
     def require_spread(self, *, min_points: int, method: str) -> None:
@@ -156,3 +171,10 @@ class BenchData:
                 "bench directions at two azimuths or more", column="azimuth_deg")
         if len(self) < min_points:
             raise InsufficientDataError(f"{method}: too few points, {len(self)}; needs at least {min_points}")
+
+
+def _chained_groups(values: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """Sort `values` and number the groups whose neighbours lie within `tolerance`: (order, group of each
+    sorted value)."""
+    order = np.argsort(values)
+    return order, np.concatenate([[0], np.cumsum(np.diff(values[order]) > tolerance)])

@@ -104,25 +104,6 @@ def accuracy_metrics(data: BenchData, zenith_deg, azimuth_deg) -> AccuracyMetric
     )
 
 
-def zenith_rings(data: BenchData, tolerance_deg: float = 0.5) -> np.ndarray:
-    """Label of the interior zenith ring of each point (−1 for normal incidence and the first and last rings).
-
-    References
-    ----------
-    seed 003, §4.2 (the grid's zenith rings, 10° apart).
-    """
-    labels = np.full(len(data), -1, dtype=int)
-    off = np.flatnonzero(~data.normal_incidence)
-    if off.size == 0:
-        return labels
-    zen = data.zenith_deg[off]
-    order = np.argsort(zen)
-    ring = np.concatenate([[0], np.cumsum(np.diff(zen[order]) > tolerance_deg)])
-    interior = (ring > 0) & (ring < ring[-1])
-    labels[off[order][interior]] = ring[interior]
-    return labels
-
-
 def holdout_predictions(method: str, data: BenchData, design: SensorDesign = DEFAULT_SENSOR, *,
                         by: str = "azimuth", **fit_options):
     """Held-out predictions: leave one bench azimuth (or one interior zenith ring) out at a time.
@@ -140,7 +121,7 @@ def holdout_predictions(method: str, data: BenchData, design: SensorDesign = DEF
     ----------
     seed 003, Table 4.1 (its columns, here held out rather than at the nodes).
     """
-    groups = data.azimuth_groups() if by == "azimuth" else zenith_rings(data)
+    groups = data.azimuth_groups() if by == "azimuth" else data.zenith_rings()
     if by != "azimuth":
         fit_options = {**METHODS[method].ring_out_options, **fit_options}
     labels = sorted(set(groups[groups >= 0].tolist()))
