@@ -36,6 +36,7 @@ import json
 import math
 import os
 import sqlite3
+import sys
 import threading
 from contextlib import contextmanager
 from pathlib import Path, PurePosixPath
@@ -79,6 +80,12 @@ _READING_REAL = ("x_px", "y_px", "peak_dn", "t_s")
 _READING_INT = ("repeat", "n_pixels", "flags")
 
 _POINT_FIELDS = ("azimuth_deg", "zenith_stage_deg", "zenith_deg", "azimuth_body_deg")
+
+
+def _command_line() -> str:
+    """``sunbench serve``: the program and its command, for the writer lock's note."""
+    argv = sys.argv or ["python"]
+    return " ".join([Path(argv[0]).name, *argv[1:2]])
 
 
 def _in(values) -> str:
@@ -346,7 +353,7 @@ class Catalogue:
     def _take_writer_lock(self) -> None:
         if fcntl is None:  # pragma: no cover
             return
-        lock_path = self.path.with_name(self.path.name + ".lock")
+        lock_path = self._lock_path(self.path)
         handle = open(lock_path, "a+")
         try:
             fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -354,13 +361,34 @@ class Catalogue:
             handle.seek(0)
             holder = handle.read().strip() or "another process"
             handle.close()
-            raise CatalogueError(f"{self.path}: already open for writing ({holder}, lock {lock_path}); the run "
-                                 "engine is the only writer, open it with readonly=True") from None
+            # said to whoever typed the command: what holds the bench and what they can do meanwhile
+            raise CatalogueError(
+                f"{self.path} is in use by {holder}, which drives the bench (a catalogue has one writer). "
+                "Queue campaigns and resume runs on that server's dashboard, or stop it first; "
+                "`sunbench runs`, `show`, `export`, `fleet` and `run --dry-run` work meanwhile") from None
         handle.seek(0)
         handle.truncate()
-        handle.write(f"pid {os.getpid()}\n")
+        handle.write(f"pid {os.getpid()} ({_command_line()})\n")
         handle.flush()
         self._lock_file = handle
+
+    @staticmethod
+    def _lock_path(path: Path) -> Path:
+        return path.with_name(path.name + ".lock")
+
+    @classmethod
+    def writer(cls, path) -> str | None:
+        """Who holds the catalogue at `path` open for writing (``pid 123 (sunbench serve)``), or None."""
+        lock_path = cls._lock_path(Path(path).absolute())
+        if fcntl is None or not lock_path.is_file():
+            return None
+        with open(lock_path) as handle:
+            try:  # a shared lock is refused only while a writer holds the exclusive one
+                fcntl.flock(handle.fileno(), fcntl.LOCK_SH | fcntl.LOCK_NB)
+            except OSError:
+                return handle.read().strip() or "another process"
+            fcntl.flock(handle.fileno(), fcntl.LOCK_UN)
+        return None
 
     def _check_header(self) -> int:
         """The file's schema version, after making sure the file is ours and not from a newer sunbench."""
@@ -764,6 +792,24 @@ class Catalogue:
                                  f"the process driving the run ended while it was {row['status']}")
                 conn.execute("UPDATE fleet_queue SET status = 'queued', updated_utc = ? "
                              "WHERE run_id = ? AND status = 'running'", (utc_now(), row["id"]))
+            return [row["id"] for row in rows]
+
+    def mark_interrupted_campaigns(self) -> list[int]:
+        """Mark campaigns a dead process left unfinished (created, running or paused, with sensors still
+        queued) as "aborted", journalled: nothing runs them until someone resumes them.
+
+        Call it when an engine starts, after :meth:`mark_interrupted_runs`. Returns their ids, ascending.
+        """
+        with self._write("mark interrupted campaigns") as conn:
+            rows = conn.execute(
+                """SELECT id, status FROM campaigns c WHERE status IN ('created', 'running', 'paused')
+                   AND EXISTS (SELECT 1 FROM fleet_queue q WHERE q.campaign_id = c.id
+                               AND q.status IN ('queued', 'running')) ORDER BY id""").fetchall()
+            for row in rows:
+                conn.execute("UPDATE campaigns SET status = 'aborted' WHERE id = ?", (row["id"],))
+                self._event(conn, None, "status", f"campaign {row['id']}: {row['status']} → aborted: the process "
+                            "running it ended; resume it to go on", {"campaign_id": row["id"], "from": row["status"],
+                                                                     "to": "aborted"})
             return [row["id"] for row in rows]
 
     # --- points and readings ----------------------------------------------------------------------------

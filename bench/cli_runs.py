@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -25,7 +26,12 @@ DEFAULT_CATALOGUE = (Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".loc
 CatalogueOption = typer.Option(None, "--catalogue", envvar="SUNBENCH_CATALOGUE",
                                help=f"SQLite catalogue (default: {DEFAULT_CATALOGUE}).")
 BenchOption = typer.Option(None, "--bench", "-b", help="Bench file (default: the simulated bench).")
-TimeScaleOption = typer.Option(None, "--time-scale", min=0.0, help="Simulated clock (0 = instant).")
+TimeScaleOption = typer.Option(None, "--time-scale", min=0.0, max=1000.0,
+                               help="Simulated clock (0 = instant, at most 1000× real time).")
+#: Catalogue ids are SQLite integers: a larger number is refused as bad input, not a traceback.
+MAX_ID = 2**63 - 1
+YesOption = typer.Option(False, "--yes", "-y", help="Confirm every sensor mount without asking (simulated benches "
+                                                    "only: unattended simulations).")
 
 
 def _catalogue(path: Optional[Path], *, readonly: bool = False):
@@ -57,6 +63,8 @@ class _ProgressView:
             self.progress.console.print(f"[yellow]{event.kind}:[/] {escape(event.data.get('reason', ''))}")
         elif event.kind == "warning":
             self.progress.console.print(f"[yellow]warning:[/] {escape(event.data.get('message', ''))}")
+        elif event.kind == "unsafe":
+            self.progress.console.print(f"[bold red]{escape(event.data.get('message', ''))}[/]")
 
 
 def _abort_on_signals(engine):
@@ -77,12 +85,17 @@ def run_campaign_command(
     catalogue: Optional[Path] = CatalogueOption,
     time_scale: Optional[float] = TimeScaleOption,
     dry_run: bool = typer.Option(False, "--dry-run", help="Only expand and check the plan."),
+    yes: bool = YesOption,
 ) -> None:
     """Run a calibration campaign; prints the run id alone on its last line (exit 1 if it did not complete)."""
     from .runner import PreflightRefused, check_campaign, run_campaign
 
     campaign = load_campaign_file(campaign_yaml)
-    with _catalogue(catalogue) as cat:
+    if dry_run:  # it writes nothing, so it never opens the catalogue: it works beside a running server
+        _refuse_a_busy_real_bench(bench, catalogue)
+    else:
+        _refuse_yes_on_a_real_bench(bench, yes)
+    with (contextlib.nullcontext() if dry_run else _catalogue(catalogue)) as cat:
         session = _session(bench, cat, time_scale)
         try:
             report = check_campaign(campaign, session)
@@ -102,21 +115,90 @@ def run_campaign_command(
             session.engine.subscribe(view.on_event)
             _abort_on_signals(session.engine)
             with view.progress:
-                runs = run_campaign(campaign, session, on_run=view.on_run)
+                runs = run_campaign(campaign, session, confirm_mount=_confirm_mount(view, yes), on_run=view.on_run)
         finally:
             session.close()
-        for run_id in runs:
-            _print_run_summary(cat, run_id)
-        if runs:
-            print(runs[-1])
-            if cat.run(runs[-1])["status"] != "completed":
-                raise typer.Exit(1)  # aborted or failed: scripts must not take it for a finished run
+        _end_of_campaign(cat, runs)
+
+
+def _end_of_campaign(cat, runs: list[int]) -> None:
+    """Every run's summary, the last run's id alone on the last line; exit 1 unless the campaign completed."""
+    if not runs:
+        out.print("no run was started: the sensor was not confirmed mounted")
+        raise typer.Exit(1)
+    for run_id in runs:
+        _print_run_summary(cat, run_id)
+    campaign_id = cat.run(runs[-1])["campaign_id"] if runs else None
+    if campaign_id is not None:
+        campaign = cat.campaign(campaign_id)
+        if campaign["status"] != "completed":
+            out.print(f"campaign {campaign_id}: {campaign['status']}; `sunbench resume {runs[-1]}` goes on with it")
+    print(runs[-1])
+    if cat.run(runs[-1])["status"] != "completed" or \
+            (campaign_id is not None and cat.campaign(campaign_id)["status"] != "completed"):
+        raise typer.Exit(1)  # aborted, failed or not mounted: scripts must not take it for a finished campaign
+    if any(_ended_unsafe(cat, run_id) for run_id in runs):
+        raise typer.Exit(1)  # the bench was left unsafe: nothing must start on it before someone looks
+
+
+def _refuse_yes_on_a_real_bench(bench: Optional[Path], yes: bool) -> None:
+    if yes and bench and load_bench_file(bench).simulation is None:
+        raise typer.BadParameter("--yes confirms sensor mounts only on a simulated bench; on a real one the "
+                                 "operator confirms each sensor when asked", param_hint="--yes")
+
+
+def _refuse_a_busy_real_bench(bench: Optional[Path], catalogue: Optional[Path]) -> None:
+    """A real bench's devices belong to the process driving it: a dry run there would home its table."""
+    from .catalogue import Catalogue, CatalogueError
+
+    holder = Catalogue.writer(catalogue or DEFAULT_CATALOGUE)
+    if holder and bench and load_bench_file(bench).simulation is None:
+        raise CatalogueError(f"the bench is in use by {holder}; dry-run the campaign on its dashboard (the "
+                             "launcher's Dry run), or stop it first")
+
+
+def _confirm_mount(view: _ProgressView, yes: bool):
+    """The operator confirms each sensor to mount at the terminal (or `--yes` does, on a simulated bench)."""
+    def confirm(request) -> bool:
+        if yes:
+            view.progress.console.print(f"{request.prompt()}: confirmed (--yes)")
+            return True
+        view.progress.stop()  # the question below the bar, not redrawn over
+        try:
+            prompt = request.prompt()
+            return typer.confirm(f"{prompt[0].upper()}{prompt[1:]}. Is it mounted?", default=False, err=True)
+        except typer.Abort:  # end of input: nobody to answer
+            err.print("no answer: the sensor was not confirmed (pass --yes for an unattended simulated bench)")
+            return False
+        finally:
+            view.progress.start()
+    return confirm
 
 
 def _print_run_summary(cat, run_id: int) -> None:
     run = cat.run(run_id)
-    out.print(f"run {run_id} ({run['sensor_id']}): {run['status']}"
-              + (f" — {escape(run['exit_reason'])}" if run.get("exit_reason") else ""))
+    reason, unsafe = _reason_and_unsafe(cat, run)
+    out.print(f"run {run_id} ({run['sensor_id']}): {run['status']}" + (f" — {escape(reason)}" if reason else ""))
+    _print_unsafe(run_id, unsafe)
+
+
+def _ended_unsafe(cat, run_id: int) -> str | None:
+    """What the engine could not make safe when the run ended (its journal's "unsafe" event), or None."""
+    return next((e["message"] for e in cat.events(run_id) if e["kind"] == "unsafe"), None)
+
+
+def _reason_and_unsafe(cat, run: dict) -> tuple[str | None, str | None]:
+    """The run's exit reason, and apart from it (the exit reason ends with it) what was left unsafe."""
+    reason, unsafe = run.get("exit_reason"), _ended_unsafe(cat, run["id"])
+    if unsafe and reason and reason.endswith(unsafe):
+        reason = reason[: -len(unsafe)].rstrip("; ") or None
+    return reason, unsafe
+
+
+def _print_unsafe(run_id: int, unsafe: str | None) -> None:
+    if unsafe:
+        out.print(f"[bold red]run {run_id} {escape(unsafe)}[/]: see to the bench before the next run",
+                  highlight=False)
 
 
 @app.command("runs")
@@ -136,14 +218,16 @@ def list_runs(catalogue: Optional[Path] = CatalogueOption) -> None:
 
 @app.command("show")
 @_user_errors
-def show_run(run_id: int = typer.Argument(...), catalogue: Optional[Path] = CatalogueOption) -> None:
+def show_run(run_id: int = typer.Argument(..., min=1, max=MAX_ID), catalogue: Optional[Path] = CatalogueOption) -> None:
     """A run: status, provenance, stages, calibrations with their accuracy."""
     from calibration.evaluation import AccuracyMetrics, MethodReport
 
     with _catalogue(catalogue, readonly=True) as cat:
         run = cat.run(run_id)
+        reason, unsafe = _reason_and_unsafe(cat, run)
         out.print(f"[bold]run {run_id}[/] · sensor {run['sensor_id']} · plan {run['plan_name']} · {run['status']}"
-                  + (f" ({escape(run['exit_reason'])})" if run.get("exit_reason") else ""))
+                  + (f" ({escape(reason)})" if reason else ""))
+        _print_unsafe(run_id, unsafe)
         lineage = cat.lineage(run_id)
         if len(lineage) > 1:
             out.print(f"lineage: runs {' → '.join(map(str, lineage))}")
@@ -197,40 +281,36 @@ def print_quality(document: dict) -> None:
 @app.command("resume")
 @_user_errors
 def resume_command(
-    run_id: int = typer.Argument(..., help="The interrupted run."),
+    run_id: int = typer.Argument(..., min=1, max=MAX_ID, help="The interrupted run."),
     bench: Optional[Path] = BenchOption,
     catalogue: Optional[Path] = CatalogueOption,
     time_scale: Optional[float] = TimeScaleOption,
+    yes: bool = YesOption,
 ) -> None:
-    """Start a new run linked to RUN that measures only the missing points; prints its id on the last line."""
-    from .runner import continue_campaign, resume_run
+    """Start a new run linked to RUN that measures only the missing points, then the rest of its campaign;
+    prints the last run's id on the last line."""
+    from .runner import resume_and_continue
 
+    _refuse_yes_on_a_real_bench(bench, yes)
     with _catalogue(catalogue) as cat:
         cat.mark_interrupted_runs()
+        cat.mark_interrupted_campaigns()
         session = _session(bench, cat, time_scale)
         try:
             view = _ProgressView()
             session.engine.subscribe(view.on_event)
             _abort_on_signals(session.engine)
             with view.progress:
-                new_id = resume_run(run_id, session, on_run=view.on_run)
-                runs = [new_id]
-                campaign_id = cat.run(new_id)["campaign_id"]
-                if cat.run(new_id)["status"] == "completed" and campaign_id is not None:
-                    runs += continue_campaign(campaign_id, session, on_run=view.on_run)  # the rest of a fleet
+                runs = resume_and_continue(run_id, session, confirm_mount=_confirm_mount(view, yes), on_run=view.on_run)
         finally:
             session.close()
-        for rid in runs:
-            _print_run_summary(cat, rid)
-        print(runs[-1])
-        if cat.run(runs[-1])["status"] != "completed":
-            raise typer.Exit(1)
+        _end_of_campaign(cat, runs)
 
 
 @app.command("export")
 @_user_errors
 def export_run(
-    run_id: int = typer.Argument(...),
+    run_id: int = typer.Argument(..., min=1, max=MAX_ID),
     format: str = typer.Option("csv", "--format", "-f", help="csv (the bench data CSV `sunbench fit` reads) or json."),
     output: Optional[Path] = typer.Option(None, "--output", "-o", help="File to write (default: stdout)."),
     catalogue: Optional[Path] = CatalogueOption,
@@ -261,7 +341,7 @@ def export_run(
 
 @app.command("fleet")
 @_user_errors
-def fleet_command(campaign_id: int = typer.Argument(...), catalogue: Optional[Path] = CatalogueOption) -> None:
+def fleet_command(campaign_id: int = typer.Argument(..., min=1, max=MAX_ID), catalogue: Optional[Path] = CatalogueOption) -> None:
     """One row per sensor of a fleet campaign, in the columns of seed 003 Table 6.1 (held out)."""
     with _catalogue(catalogue, readonly=True) as cat:
         campaign = cat.campaign(campaign_id)

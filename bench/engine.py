@@ -5,7 +5,19 @@ their legal transitions are one table; commands from other threads (pause, resum
 are flags it looks at between frames and at every checkpoint (every point is one). Interlocks (lamp fault,
 sensor over-temperature, enclosure open) suspend the run and resume it once cleared; a pause or an
 interlock in the middle of a point discards the point's partial frames, and the point is measured again.
-Whatever happens, the run ends with the shutter closed, the lamp at standby and the table stopped.
+Whatever happens, the run ends with the shutter closed, the lamp at standby and the table stopped; when the
+shutter cannot be closed the lamp is switched off instead, and the run is journaled as "ended unsafe".
+
+An emergency stop latches: the engine stays in ``estop``, refusing every move and every light, until an
+operator acknowledges it (:meth:`RunEngine.acknowledge_estop`). Manual commands (jog, lamp, shutter) go through
+the engine too, so an emergency stop interrupts them like a run.
+
+A move is expected to take what the table's own speeds say (:meth:`drivers.interfaces.RotaryTable.expected_motion`,
+:class:`~bench.preflight.TimingModel`); a table still moving ``MOVE_TIMEOUT_FACTOR`` × that plus
+``MOVE_TIMEOUT_MARGIN_S`` after the start is stalled, and the move faults.
+
+The engine emits an event for what it does and reads (``table``, ``source``, ``sensor``), so a status view can
+follow a run without asking devices the engine owns.
 
 A point is recorded in one catalogue transaction, so a killed process leaves whole points only; a resumed
 run skips the keys its lineage recorded (research note anchors-orchestration, lessons 2, 3, 9).
@@ -28,6 +40,17 @@ from drivers.errors import DeviceFault, DeviceTimeout
 
 from .messages import (Capture, Checkpoint, CloseShutter, LampOn, Log, Measure, MayStopEarly, Move, OpenShutter, Plan,
                        Reading, Record, SetExposure, WaitWarm)
+from .preflight import TimingModel, timing_from_motion
+
+#: A move faults once it has lasted this many times its expected duration plus the margin [s]: the margin
+#: covers settling, the controller's own start-up and a table slower than its reported speed.
+MOVE_TIMEOUT_FACTOR = 1.5
+MOVE_TIMEOUT_MARGIN_S = 5.0
+#: The wait for a table that cannot tell its speeds (a manual stage, an LX200 without a slew rate) [s].
+UNKNOWN_MOVE_TIMEOUT_S = 600.0
+#: Readings the engine takes often (temperature, lamp status) are emitted at most this often, unless a flag
+#: changes [s]: a status view needs no more, and every event goes to every client.
+OBSERVE_PERIOD_S = 1.0
 
 
 class EngineState(str, enum.Enum):
@@ -38,6 +61,7 @@ class EngineState(str, enum.Enum):
     SUSPENDED = "suspended"
     ABORTING = "aborting"
     FAULTED = "faulted"
+    ESTOP = "estop"  # an emergency stop, latched until acknowledged
 
 
 S = EngineState
@@ -49,11 +73,24 @@ TRANSITIONS: dict[EngineState, set[EngineState]] = {
     S.SUSPENDED: {S.RUNNING, S.ABORTING, S.FAULTED},
     S.ABORTING: {S.IDLE, S.FAULTED},
     S.FAULTED: {S.IDLE},
+    S.ESTOP: {S.IDLE},  # only an acknowledgement leaves it
 }
+for _state in TRANSITIONS:  # an emergency stop may come in any state
+    if _state is not S.ESTOP:
+        TRANSITIONS[_state].add(S.ESTOP)
 
 
 class IllegalTransition(RuntimeError):
     """A command that the engine's present state does not allow (the web answers 409)."""
+
+
+class EstopLatched(IllegalTransition):
+    """A move or a light refused, or a manual move interrupted, by the latched emergency stop (the web answers
+    409)."""
+
+
+LATCHED = ("emergency stop latched: nothing moves or lights until it is acknowledged "
+           "(Acknowledge e-stop, POST /api/stop/acknowledge)")
 
 
 class Aborted(Exception):
@@ -136,7 +173,8 @@ class RunEngine:
         self._state = EngineState.IDLE
         self._lock = threading.RLock()
         self._wake = threading.Condition(self._lock)
-        self._pause = self._abort = self._estop = False
+        self._pause = self._abort = self._estop = False  # _estop: the latch, cleared only by an acknowledgement
+        self._executing = False  # a plan is being executed and its run has not ended yet
         self._listeners = []
         self._run_id: int | None = None
         self._shutter_open = False
@@ -144,6 +182,9 @@ class RunEngine:
         self._lamp_wanted = False
         self._progress = (0, 0)
         self._point_times: list[float] = []
+        self._pose: tuple[float, float] | None = None  # where the table was last seen still (azimuth, zenith)
+        self._timing: TimingModel | None | bool = False  # the table's speeds; False: not asked yet, None: unknown
+        self._observed: dict[str, tuple[float, dict]] = {}  # kind -> (when, data) of the last reading emitted
         self.last_frame = None
 
     # -- state and commands ----------------------------------------------------------------------------
@@ -167,6 +208,8 @@ class RunEngine:
         with self._lock:
             if new is self._state:
                 return
+            if self._state is EngineState.ESTOP and new is not EngineState.IDLE:
+                raise Aborted()  # the run's thread, after an emergency stop came in: it ends as aborted
             if new not in TRANSITIONS[self._state]:
                 raise IllegalTransition(f"cannot go from {self._state.value} to {new.value}")
             old, self._state = self._state, new
@@ -192,18 +235,148 @@ class RunEngine:
 
     def abort(self) -> None:
         with self._lock:
-            if self._state in (EngineState.IDLE, EngineState.ABORTING, EngineState.FAULTED):
+            if self._state in (EngineState.IDLE, EngineState.ABORTING, EngineState.FAULTED, EngineState.ESTOP):
                 raise IllegalTransition(f"cannot abort: the engine is {self._state.value}")
             self._abort = True
             self._wake.notify_all()
 
-    def emergency_stop(self) -> None:
-        """Stop the table and close the shutter now, from the caller's thread, then end the run."""
+    def emergency_stop(self) -> list[str]:
+        """Stop the table and close the shutter now, from the caller's thread, end any run or manual command,
+        and latch: the engine stays in ``estop`` and refuses every move and light until
+        :meth:`acknowledge_estop`. Allowed in any state.
+
+        Returns
+        -------
+        list of str
+            What could not be made safe, in words; empty when the table stopped and the shutter closed.
+        """
         with self._lock:
             self._abort = self._estop = True
+            previous, self._state = self._state, EngineState.ESTOP
             self._wake.notify_all()
-        self._safe("table", self.devices.table.stop)
-        self._safe("shutter", self.devices.source.close_shutter)
+        if previous is not EngineState.ESTOP:
+            self._emit("state", state=EngineState.ESTOP.value, previous=previous.value)
+        # the table first: a moving table is the hazard to hands; then the light
+        problems = [f"the table may still be moving ({error})"
+                    for error in [self._safe("table", self.devices.table.stop, "emergency stop")] if error]
+        problems += self._make_dark("emergency stop")
+        self._pose = None
+        self._stopped_where()  # where the table came to rest, for a status view
+        self._journal("estop", "emergency stop, latched until acknowledged"
+                      + (f": {'; '.join(problems)}" if problems else ": table stopped, shutter closed"))
+        return problems
+
+    def acknowledge_estop(self, wait_s: float = 10.0) -> None:
+        """Release the emergency stop's latch (the operator has seen to the bench); the engine goes idle. A run
+        the stop ended is given `wait_s` [s] to finish making the bench safe first.
+
+        Raises
+        ------
+        IllegalTransition
+            Nothing is latched, or the stopped run is still being made safe (acknowledge again once it ended).
+        """
+        with self._lock:
+            if self._state is not EngineState.ESTOP:
+                raise IllegalTransition(f"no emergency stop to acknowledge: the engine is {self._state.value}")
+            self._wake.wait_for(lambda: not self._executing, timeout=wait_s)
+            if self._executing:
+                raise IllegalTransition("the stopped run is still being made safe: acknowledge once it has ended")
+            self._estop = self._abort = self._pause = False
+            self._state = EngineState.IDLE
+            self._wake.notify_all()
+        self._emit("state", state=EngineState.IDLE.value, previous=EngineState.ESTOP.value)
+        self._journal("estop", "emergency stop acknowledged")
+
+    @property
+    def latched(self) -> bool:
+        """An emergency stop is latched (see :meth:`emergency_stop`)."""
+        return self._estop
+
+    def check_unlatched(self) -> None:
+        """Raise :class:`EstopLatched` while an emergency stop is latched (before queueing a campaign)."""
+        if self._estop:
+            raise EstopLatched(LATCHED)
+
+    def _journal(self, kind: str, message: str) -> None:
+        """Journal an event of the run in progress, or of the bench (no run); never raises."""
+        try:
+            self.catalogue.log_event(self._run_id, kind, message)
+        except Exception:  # noqa: BLE001 - the catalogue may be what failed
+            pass
+
+    # -- manual commands (outside a run) ---------------------------------------------------------------
+    def _manual(self, what: str, *, safe: bool = False) -> None:
+        """Refuse a manual command while a run owns the bench, or (unless it makes the bench safer: `safe`)
+        while an emergency stop is latched."""
+        with self._lock:
+            if self._estop and not safe:
+                raise EstopLatched(f"{LATCHED}; refused: {what}")
+            if self._executing or self._state not in (EngineState.IDLE, EngineState.ESTOP):
+                raise IllegalTransition(f"a run owns the bench (engine {self._state.value}); refused: {what}")
+
+    def jog(self, azimuth_deg: float, zenith_deg: float) -> None:
+        """Move the table outside a run; returns once it is there.
+
+        Raises
+        ------
+        EstopLatched
+            The latch holds, or an emergency stop interrupted the move: the message says where the table stopped.
+        IllegalTransition
+            A run owns the bench.
+        drivers.errors.LimitError
+            Outside the soft limits; nothing moved.
+        drivers.errors.DeviceTimeout
+            The table did not arrive in time (a stalled axis): it was stopped.
+        """
+        self._manual(f"move the table to azimuth {azimuth_deg:g}°, zenith {zenith_deg:g}°")
+        try:
+            self._move(azimuth_deg, zenith_deg)
+        except Aborted:
+            raise EstopLatched(f"emergency stop: the move to azimuth {azimuth_deg:g}°, zenith {zenith_deg:g}° was "
+                               f"interrupted; {self._stopped_where()}. {LATCHED}") from None
+
+    def set_lamp(self, on: bool) -> None:
+        """Lamp on, or at standby (allowed while latched: it makes the bench safer)."""
+        source = self.devices.source
+        if on:
+            self._manual("switch the lamp on")
+            self._checked(source.lamp_on)
+        else:
+            self._manual("put the lamp at standby", safe=True)
+            source.standby()
+            self._shutter_open = False
+        self._observe_source(**({"lamp_on": True} if on else {"shutter_open": False}))
+
+    def set_shutter(self, open_: bool) -> None:
+        """Open the shutter, or close it (allowed while latched: it makes the bench safer)."""
+        source = self.devices.source
+        if open_:
+            self._manual("open the shutter")
+            self._checked(source.open_shutter)
+        else:
+            self._manual("close the shutter", safe=True)
+            source.close_shutter()
+        self._observe_source(shutter_open=open_)
+
+    def _checked(self, action) -> None:
+        """`action` unless the latch came first (manual commands: an Aborted becomes the latch's refusal)."""
+        try:
+            self._act(action)
+        except Aborted:
+            raise EstopLatched(LATCHED) from None
+
+    def _stopped_where(self) -> str:
+        """Where the stopped table is, in words, once it has come to rest (a profiled stop decelerates)."""
+        table = self.devices.table
+        try:
+            deadline = time.monotonic() + 2.0
+            while table.is_moving() and time.monotonic() < deadline:
+                time.sleep(0.02)
+            azimuth, zenith = table.position()
+        except Exception as exc:  # noqa: BLE001 - the answer must still say the move did not end where asked
+            return f"the table's position is unknown ({exc})"
+        self._emit("table", azimuth_deg=azimuth, zenith_deg=zenith, moving=False)
+        return f"the table stopped at azimuth {azimuth:.3f}°, zenith {zenith:.3f}°"
 
     # -- running ---------------------------------------------------------------------------------------
     def execute(self, plan: Plan, *, run_id: int, done_keys=frozenset(), lineage=(), n_points: int = 0,
@@ -222,17 +395,24 @@ class RunEngine:
             Called once the plan has run to its end and the bench is safe, before the run is marked completed
             (the fits), so a reader never sees a completed run without its results. Its failure is logged.
         """
-        self._run_id = run_id
-        self._pause = self._abort = self._estop = False
+        with self._lock:
+            if self._estop:
+                raise EstopLatched(LATCHED)
+            if self._executing or self._state is not EngineState.IDLE:
+                raise IllegalTransition(f"cannot start a run: the engine is {self._state.value}")
+            self._executing = True
+            self._run_id = run_id
+            self._pause = self._abort = False
         self._shutter_wanted = self._shutter_open = self._lamp_wanted = False
         self._done, self._lineage = set(done_keys), list(lineage) or [run_id]
         self._progress = (len(self._done), n_points)
         self._point_times = []
-        self._to(EngineState.RUNNING)
-        self.catalogue.set_run_status(run_id, "running")
-        status, reason = "completed", None
+        self._pose, self._timing = None, False  # read afresh: the table may have been moved or reconfigured
+        status, reason, unsafe = "completed", None, None
         answer, interrupt = None, None
         try:
+            self._to(EngineState.RUNNING)
+            self.catalogue.set_run_status(run_id, "running")
             while True:
                 try:
                     msg = plan.send(answer)
@@ -249,7 +429,12 @@ class RunEngine:
         except BaseException as exc:  # KeyboardInterrupt, SystemExit: made safe and recorded, then re-raised
             status, reason, interrupt = "aborted", f"interrupted ({type(exc).__name__})", exc
         finally:
-            self._finalise()  # first: nothing the plan does on closing may keep the bench unsafe
+            problems = self._finalise()  # first: nothing the plan does on closing may keep the bench unsafe
+            if problems:
+                unsafe = "ended unsafe: " + "; ".join(problems)
+                reason = f"{reason}; {unsafe}" if reason else unsafe
+                self._journal("unsafe", unsafe)
+                self._emit("unsafe", message=unsafe)
             try:
                 plan.close()
             except Exception as exc:  # noqa: BLE001 - a plan that misbehaves while closing
@@ -264,17 +449,20 @@ class RunEngine:
         except Exception as exc:  # noqa: BLE001 - the catalogue itself failed (disk full …): say so, go idle
             status, reason = "failed", f"could not record the end of the run: {exc}"
         finally:
-            with self._lock:  # whatever happened, the engine can take the next run
-                previous, self._state = self._state, EngineState.IDLE
+            with self._lock:  # whatever happened, the engine can take the next run, unless an e-stop is latched
+                final = EngineState.ESTOP if self._estop else EngineState.IDLE
+                previous, self._state = self._state, final
                 self._run_id = None
+                self._executing = False
+                self._pause, self._abort = False, self._estop
                 self._wake.notify_all()
-            if previous is not EngineState.IDLE:
+            if previous is not final:
                 try:
-                    self.catalogue.log_event(run_id, "state", f"{previous.value} → idle")
+                    self.catalogue.log_event(run_id, "state", f"{previous.value} → {final.value}")
                 except Exception:  # noqa: BLE001 - the catalogue may be what failed
                     pass
-            self._emit("finished", status=status, reason=reason)
-            self._emit("state", state=EngineState.IDLE.value, previous=previous.value)
+            self._emit("finished", status=status, reason=reason, unsafe=unsafe)
+            self._emit("state", state=final.value, previous=previous.value)
         if interrupt is not None:
             raise interrupt
         return status
@@ -285,23 +473,67 @@ class RunEngine:
         except Exception:  # noqa: BLE001 - the end of a run must go on whatever the bookkeeping says
             pass
 
-    def _finalise(self) -> None:
-        """Shutter closed, lamp at standby, table stopped — each tried even if another fails."""
-        self._safe("shutter", self.devices.source.close_shutter)
-        self._safe("lamp", self.devices.source.standby)
-        self._safe("table", self.devices.table.stop)
-        self._shutter_open = False
+    def _finalise(self) -> list[str]:
+        """Shutter closed, lamp at standby, table stopped — each tried even if another fails. Returns what could
+        not be made safe, in words (empty: the bench is safe)."""
+        problems = self._make_dark()
+        error = self._safe("table", self.devices.table.stop)
+        if error is not None:
+            problems.append(f"the table could not be stopped ({error})")
+        return problems
 
-    def _safe(self, what: str, action) -> None:
+    def _make_dark(self, when: str = "finalisation") -> list[str]:
+        """Shutter closed and lamp at standby; when the shutter cannot be closed, the lamp switched off instead
+        (an arc lamp at standby keeps burning: with the shutter open it would go on lighting the sensor).
+        Returns what could not be made safe, in words."""
+        source = self.devices.source
+        error = self._safe("shutter", source.close_shutter, when)
+        if error is None:
+            self._shutter_open = False
+            self._safe("lamp", source.standby, when)  # the shutter is closed: a failed standby is a warning only
+            self._observe_source(shutter_open=False)
+            return []
+        off = self._safe("lamp", source.lamp_off, when)
+        if off is None:
+            self._observe_source(lamp_on=False)
+            return [f"the shutter did not close ({error}); the lamp was switched off instead"]
+        return [f"the shutter did not close ({error}) and the lamp could not be switched off ({off}): "
+                "the sensor may still be lit"]
+
+    def _safe(self, what: str, action, when: str = "finalisation") -> Exception | None:
+        """`action()`, its failure journaled as a warning and returned instead of raised (making the bench safe
+        must go on)."""
         try:
             action()
         except Exception as exc:  # noqa: BLE001 - finalisation must go on
             self._emit("warning", message=f"{what}: {exc}")
             if self._run_id is not None:
                 try:
-                    self.catalogue.log_event(self._run_id, "warning", f"finalisation, {what}: {exc}")
+                    self.catalogue.log_event(self._run_id, "warning", f"{when}, {what}: {exc}")
                 except Exception:  # noqa: BLE001
                     pass
+            return exc
+        return None
+
+    # -- what the engine reads, for a status view -------------------------------------------------------
+    def _observe(self, kind: str, data: dict, *, flags=()) -> None:
+        """Emit a reading the engine took (`kind` "source" or "sensor") unless one was emitted less than
+        OBSERVE_PERIOD_S ago with the same `flags`."""
+        now = time.monotonic()
+        last = self._observed.get(kind)
+        if last is not None and now - last[0] < OBSERVE_PERIOD_S and all(last[1].get(f) == data.get(f) for f in flags):
+            return
+        self._observed[kind] = (now, data)
+        self._emit(kind, **data)
+
+    def _observe_source(self, **implied) -> None:
+        """After a lamp or shutter action: the source's status as it now reads, else what the action implies."""
+        try:
+            data = dataclasses.asdict(self.devices.source.status())
+        except Exception:  # noqa: BLE001 - a source that cannot be read (the shutter that failed) tells no more
+            data = implied
+        self._observed.pop("source", None)
+        self._observe("source", data)
 
     # -- messages --------------------------------------------------------------------------------------
     def _handle(self, msg):
@@ -319,10 +551,13 @@ class RunEngine:
             return [self._read(i) for i in range(msg.frames)]
         if isinstance(msg, SetExposure):
             actual = d.sensor.set_exposure_ms(msg.exposure_ms)
-            return msg.exposure_ms if actual is None else actual
+            exposure = msg.exposure_ms if actual is None else actual
+            self._emit("sensor", exposure_ms=exposure)
+            return exposure
         if isinstance(msg, LampOn):
             self._lamp_wanted = True
             d.source.lamp_on()
+            self._observe_source(lamp_on=True)
             return None
         if isinstance(msg, WaitWarm):
             self._wait_warm()
@@ -335,6 +570,7 @@ class RunEngine:
             self._shutter_wanted = False
             d.source.close_shutter()
             self._shutter_open = False
+            self._observe_source(shutter_open=False)
             return None
         if isinstance(msg, Record):
             self.catalogue.set_run_value(self._run_id, msg.key, msg.value)
@@ -358,21 +594,80 @@ class RunEngine:
                 raise Aborted()
             action()
 
-    def _move(self, azimuth_deg: float, zenith_deg: float, timeout_s: float = 600.0) -> None:
-        """Move the table, watching for an abort while it moves (a stalled table times out)."""
+    def _timing_model(self) -> TimingModel | None:
+        """The table's speeds as it reports them (asked once per run), None when it cannot tell both axes'."""
+        if self._timing is False:
+            try:
+                azimuth, zenith = self.devices.table.expected_motion()
+            except Exception:  # noqa: BLE001 - no speeds: the moves get the long timeout
+                azimuth = zenith = None
+            known = all(m is not None and m.rate_deg_s > 0 for m in (azimuth, zenith))
+            self._timing = timing_from_motion(azimuth, zenith) if known else None
+        return self._timing
+
+    def move_timeout(self, start, end) -> tuple[float | None, float]:
+        """(expected duration, timeout) of a table move between poses (azimuth_deg, zenith_stage_deg) [s].
+
+        The expected duration is the table's trapezoidal move at its reported speeds plus settling
+        (:meth:`bench.preflight.TimingModel.move_s`); the timeout is MOVE_TIMEOUT_FACTOR × that +
+        MOVE_TIMEOUT_MARGIN_S. A table that cannot tell its speeds, or a move from an unknown pose, gets
+        (None, UNKNOWN_MOVE_TIMEOUT_S).
+        """
+        timing = self._timing_model()
+        if timing is None or start is None:
+            return None, UNKNOWN_MOVE_TIMEOUT_S
+        expected = timing.move_s(start, end)
+        return expected, MOVE_TIMEOUT_FACTOR * expected + MOVE_TIMEOUT_MARGIN_S
+
+    def _move(self, azimuth_deg: float, zenith_deg: float) -> None:
+        """Move the table, watching for an abort while it moves; a table still moving well past the move's
+        expected duration (:meth:`move_timeout`) is stalled: it is stopped and the move faults."""
         table = self.devices.table
+        start = self._pose
+        if start is None:
+            try:
+                start = table.position()
+            except Exception:  # noqa: BLE001 - the move itself will tell whether the table answers
+                start = None
+        expected, timeout = self.move_timeout(start, (azimuth_deg, zenith_deg))
+        self._pose = None  # unknown until the table is seen still again
         self._act(lambda: table.move_to(azimuth_deg, zenith_deg, wait=False))
-        deadline = time.monotonic() + timeout_s
+        here = {"azimuth_deg": start[0], "zenith_deg": start[1]} if start is not None else {}
+        self._emit("table", moving=True, **here, target_azimuth_deg=azimuth_deg, target_zenith_deg=zenith_deg,
+                   expected_s=expected, timeout_s=timeout)
+        # elapsed time on the bench's clock (a simulation's runs at its time scale); a simulated clock at time
+        # scale 0 stands still while nothing completes (a stalled axis), so then the wall clock counts
+        wall0, bench0 = time.monotonic(), self.clock()
+        next_report = wall0 + 0.25
         while table.is_moving():
             if self._abort:
-                self._safe("table", table.stop)
+                self._safe("table", table.stop, "move")
                 raise Aborted()
-            if time.monotonic() > deadline:
-                self._safe("table", table.stop)
-                raise DeviceTimeout(table.name, f"table still moving after {timeout_s} s: stalled?")
+            now = time.monotonic()
+            bench = self.clock() - bench0
+            elapsed = bench if bench > 0 else now - wall0
+            if elapsed > timeout:
+                self._safe("table", table.stop, "move")
+                raise DeviceTimeout(table.name, f"table still moving {elapsed:.1f} s after the start of a move to "
+                                                f"({azimuth_deg:.4f}°, {zenith_deg:.4f}°) that should take "
+                                                + (f"{expected:.1f} s (timeout {timeout:.1f} s = "
+                                                   f"{MOVE_TIMEOUT_FACTOR:g} × expected + {MOVE_TIMEOUT_MARGIN_S:g} s)"
+                                                   if expected is not None else f"at most {timeout:.0f} s")
+                                                + ": stalled? The table was stopped.")
+            if now >= next_report:  # the table's position while it moves, for a status view
+                next_report = now + 0.25
+                try:
+                    azimuth, zenith = table.position()
+                    self._emit("table", azimuth_deg=azimuth, zenith_deg=zenith, moving=True)
+                except Exception:  # noqa: BLE001 - a missed position is no reason to stop the move
+                    pass
             with self._lock:
                 self._wake.wait(0.005)
+        if self._abort:  # an emergency stop stopped the table from its own thread: not a fault of the table
+            raise Aborted()
         azimuth, zenith = table.position()  # a limit switch or a stall that stopped it short is a fault
+        self._pose = (azimuth, zenith)
+        self._emit("table", azimuth_deg=azimuth, zenith_deg=zenith, moving=False)
         off = max(abs((azimuth - azimuth_deg + 180.0) % 360.0 - 180.0), abs(zenith - zenith_deg))
         if off > self.ARRIVAL_TOLERANCE_DEG:
             raise DeviceFault(table.name, f"table stopped at ({azimuth:.4f}°, {zenith:.4f}°), "
@@ -381,6 +676,8 @@ class RunEngine:
     def _wait_warm(self) -> None:
         """Wait for the lamp, watching for an abort (an arc lamp warms for half an hour)."""
         def pause(seconds):
+            # the source was just read: lit, not warm yet, no fault (wait_until_warm raises otherwise)
+            self._observe("source", {"lamp_on": True, "warm": False, "fault": False}, flags=("warm",))
             with self._lock:
                 self._wake.wait(seconds)  # an abort wakes it at once
             if self._abort:
@@ -390,6 +687,7 @@ class RunEngine:
             raise Aborted()
         self.devices.source.wait_until_warm(timeout_s=self.warm_timeout_s, poll_s=min(0.5, self.interlocks.poll_s),
                                             pause=pause)
+        self._observe("source", {"lamp_on": True, "warm": True, "fault": False}, flags=("warm",))
 
     def _read(self, repeat: int) -> Reading:
         frame = self.devices.sensor.capture()
@@ -506,9 +804,13 @@ class RunEngine:
         lock = self.interlocks
         if lock.enclosure_open is not None and lock.enclosure_open():
             return "enclosure open"
-        if lock.lamp_fault and self._lamp_wanted and self.devices.source.status().fault:
-            return "lamp fault"
+        if lock.lamp_fault and self._lamp_wanted:
+            source = self.devices.source.status()
+            self._observe("source", dataclasses.asdict(source), flags=("lamp_on", "warm", "shutter_open", "fault"))
+            if source.fault:
+                return "lamp fault"
         temperature = self.devices.sensor.temperature_c()
+        self._observe("sensor", {"temperature_c": float(temperature) if np.isfinite(temperature) else None})
         if np.isfinite(temperature) and temperature > lock.sensor_max_temperature_c:
             return f"sensor over temperature ({temperature:.1f} °C > {lock.sensor_max_temperature_c} °C)"
         return None
@@ -533,6 +835,7 @@ class RunEngine:
             if self._shutter_wanted and not self._shutter_open:
                 self._act(self.devices.source.open_shutter)
                 self._shutter_open = True
+                self._observe_source(shutter_open=True)
             return
 
     def _interlocks_clear(self) -> bool:
@@ -547,9 +850,12 @@ class RunEngine:
     def _hold(self, state: EngineState, reason: str, cleared) -> None:
         """Park the bench safely in `state` until `cleared()` (or an abort), then relight the lamp; the shutter
         is reopened by the checkpoint once nothing holds the bench."""
-        self._safe("shutter", self.devices.source.close_shutter)
+        # a shutter that cannot be closed fails the run, rather than hold it lit: finalisation puts the lamp out
+        self.devices.source.close_shutter()
         self._shutter_open = False
-        self._safe("table", self.devices.table.stop)
+        self._observe_source(shutter_open=False)
+        self._safe("table", self.devices.table.stop, state.value)
+        self._pose = None
         self._to(state)
         self.catalogue.log_event(self._run_id, state.value, reason)
         self._emit(state.value, reason=reason)
@@ -561,6 +867,7 @@ class RunEngine:
             raise Aborted()
         if self._lamp_wanted and not self.devices.source.status().lamp_on:
             self._act(self.devices.source.lamp_on)  # a lamp fault put the lamp out
+            self._observe_source(lamp_on=True)
         if self._lamp_wanted:
             self._wait_warm()
         self._to(EngineState.RUNNING)

@@ -71,6 +71,12 @@ def timing_from_table(table, base: TimingModel = TimingModel()) -> TimingModel:
         azimuth, zenith = table.expected_motion()
     except Exception:  # noqa: BLE001 - see the docstring
         return base
+    return timing_from_motion(azimuth, zenith, base)
+
+
+def timing_from_motion(azimuth, zenith, base: TimingModel = TimingModel()) -> TimingModel:
+    """`base` with the (azimuth, zenith) :class:`~drivers.interfaces.AxisMotion` a table reported; an axis
+    reported as None, or without a positive speed, keeps `base`'s."""
     zenith_rate = zenith.rate_deg_s if zenith and zenith.rate_deg_s > 0 else base.rate_deg_s
     zenith_accel = zenith.accel_deg_s2 if zenith and zenith.accel_deg_s2 else base.accel_deg_s2
     azimuth_rate = azimuth.rate_deg_s if azimuth and azimuth.rate_deg_s > 0 else base.rates_deg_s[0]

@@ -6,7 +6,7 @@ This is what ``sunbench run`` and ``sunbench resume`` call; the web dashboard wi
 from __future__ import annotations
 
 import dataclasses
-import zlib
+from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import metadata
 
@@ -18,6 +18,7 @@ from calibration.design import DEFAULT_SENSOR
 from calibration.evaluation import StageFrames, calibrate
 from calibration.stage_geometry import GeometryPrior
 from .campaign import Campaign
+from .catalogue import LIVE_RUN_STATUSES
 from .datafile import calibration_document
 from .engine import Interlocks, RunEngine
 from .plans import alignment_violations, make_plan, procedure_auto_exposure
@@ -26,6 +27,10 @@ from .preflight import PreflightReport, TimingModel, preflight, timing_from_tabl
 
 class ResumeRefused(Exception):
     """A run that cannot be resumed (complete, still live, or already resumed)."""
+
+
+#: How a run of a campaign may end without completing and still be resumed (its points are kept)
+RESUMABLE_STATUSES = ("aborted", "failed", "crashed")
 
 
 class PreflightRefused(Exception):
@@ -151,40 +156,138 @@ def fit_run(catalogue, run_id: int, methods, design=None, geometry: GeometryPrio
     return outcome.reports
 
 
-def _provenance(session: Session, campaign: Campaign, sensor_id: str) -> dict:
+def _provenance(session: Session, campaign: Campaign, sensor_id: str, identity=None) -> dict:
+    from .hardware import _identity_text
+    devices = dict(session.devices.identities)
+    if identity is not None:  # what the module said when this sensor was checked, not at connection
+        devices["sensor"] = _identity_text(identity)
     return {"bench_config_hash": session.bench_file.config_hash(), "software_version": software_version(),
-            "devices": dict(session.devices.identities), "simulated": session.devices.sim is not None,
+            "devices": devices, "simulated": session.devices.sim is not None,
             "operator": campaign.operator, "sensor_serial": sensor_id, "frames": campaign.frames}
 
 
-def _mount_sensor(session: Session, sensor_id: str, ask_operator) -> None:
-    """Put the next sensor of a fleet on the bench: the simulated world swaps its truth; a real bench asks."""
+@dataclass(frozen=True)
+class MountRequest:
+    """A sensor the operator must put on the bench, and confirm, before its run.
+
+    Attributes
+    ----------
+    sensor_id : str
+        Its serial, as the campaign lists it.
+    campaign_id : int or None
+    position, count : int
+        Its place in the campaign's queue (from 0) and the queue's length.
+    resumes_run : int or None
+        The run of this sensor that the coming run resumes.
+    """
+
+    sensor_id: str
+    campaign_id: int | None
+    position: int
+    count: int
+    resumes_run: int | None = None
+
+    def prompt(self) -> str:
+        where = (f" (sensor {self.position + 1} of {self.count} of campaign {self.campaign_id})"
+                 if self.campaign_id is not None else "")
+        return f"mount sensor {self.sensor_id} on the bench{where}"
+
+
+#: ``confirm_mount(request) -> bool``: True once the operator says the sensor is mounted, False to stop
+ConfirmMount = Callable[[MountRequest], bool]
+
+
+def reads_serial(session: Session) -> bool:
+    """Whether the sensor module tells its serial (the CMOS module does; a camera's "serial" is its port)."""
+    return bool(getattr(session.devices.sensor, "reports_serial", False))
+
+
+def _mount(session: Session, request: MountRequest, confirm_mount: ConfirmMount | None) -> bool:
+    """Get `request`'s sensor onto the bench; False when the operator did not confirm it.
+
+    Every sensor but the first of its campaign waits for the operator (it has to be swapped in), and so does
+    the first when the module cannot tell its serial; on a simulated bench the simulator mounts it first,
+    as the operator's hands would.
+    """
     sim = session.devices.sim
     if sim is not None:
-        sim.world.sensor = fleet_sensor_truth(sim.world.sensor, sensor_id, first=sim.config.sensor.serial)
-    elif ask_operator is not None:
-        ask_operator(f"mount sensor {sensor_id} on the bench and confirm")
+        sim.mount_sensor(request.sensor_id)
+    if request.position == 0 and reads_serial(session):
+        return True  # the operator who started the campaign mounted it; its serial is checked next
+    return confirm_mount is not None and bool(confirm_mount(request))
 
 
-def fleet_sensor_truth(base, serial: str, *, first: str):
-    """A simulated flight sensor: the bench's sensor for its own serial, others with their own build errors
-    drawn (reproducibly, from the serial) around it."""
-    if serial == first:
-        return dataclasses.replace(base, serial=serial)
-    rng = np.random.default_rng(zlib.crc32(serial.encode()))
-    b = base.build
-    build = dataclasses.replace(b, x0_px=b.x0_px + rng.normal(0, 6), y0_px=b.y0_px + rng.normal(0, 6),
-                                gap_mm=b.gap_mm + rng.normal(0, 0.03), glass_mm=max(b.glass_mm + rng.normal(0, 0.03), 0),
-                                tilt_x_deg=rng.normal(0, 0.2), tilt_y_deg=rng.normal(0, 0.2),
-                                rotation_deg=rng.normal(0, 1.5))
-    return dataclasses.replace(base, build=build, serial=serial,
-                               aperture_ellipticity=abs(base.aperture_ellipticity * (1 + rng.normal(0, 0.3))))
+def _queue_place(catalogue, campaign_id: int | None, sensor_id: str) -> tuple[int, int]:
+    if campaign_id is None:
+        return 0, 1
+    queue = catalogue.fleet(campaign_id)
+    return next(e["position"] for e in queue if e["sensor_id"] == sensor_id), len(queue)
 
 
-def run_campaign(campaign: Campaign, session: Session, *, ask_operator=None, on_run=None) -> list[int]:
+def _run_sensor(session: Session, campaign: Campaign, campaign_id: int | None, sensor_id: str, *,
+                parent: int | None = None, n_points: int | None = None, confirm_mount: ConfirmMount | None = None,
+                on_run=None) -> tuple[int | None, str]:
+    """Mount one sensor, check its serial, then measure it (resuming `parent`'s lineage) and fit it.
+
+    Returns (run id, its status), or (None, "not mounted") when the operator did not confirm the mount.
+    A module reporting another serial than `sensor_id` fails the run before anything moves.
+    """
+    catalogue = session.catalogue
+    session.engine.check_unlatched()  # nothing starts behind a latched emergency stop (its sensor stays queued)
+    position, count = _queue_place(catalogue, campaign_id, sensor_id)
+    request = MountRequest(sensor_id, campaign_id, position, count, parent)
+    if not _mount(session, request, confirm_mount):
+        catalogue.log_event(parent, "mount", f"{request.prompt()}: not confirmed; nothing was measured")
+        return None, "not mounted"
+    identity = session.devices.sensor.identify() if reads_serial(session) else None
+    if n_points is None:
+        n_points = len(check_campaign(campaign.model_copy(update={"sensors": (sensor_id,)}), session).points)
+    session.engine.check_unlatched()  # an emergency stop while the operator mounted the sensor
+    run_id = catalogue.create_run(campaign_id=campaign_id, sensor_id=sensor_id, plan_name=campaign.plan,
+                                  plan_args=campaign.model_dump(mode="json"), parent_run_id=parent,
+                                  provenance=_provenance(session, campaign, sensor_id, identity),
+                                  n_points_planned=n_points)
+    if campaign_id is not None:
+        catalogue.set_queue_status(campaign_id, sensor_id, "running", run_id)
+    if identity is not None and identity.serial != sensor_id:
+        # a run labelled with one serial must never hold another sensor's data
+        status = "failed"
+        catalogue.set_run_status(run_id, status, f"the sensor on the bench reports serial {identity.serial}, not "
+                                                 f"{sensor_id}: mount {sensor_id} and resume (nothing was measured)")
+    else:
+        if on_run:
+            on_run(run_id, sensor_id)
+        status = _execute(session, campaign, run_id, n_points, lineage=catalogue.lineage(run_id))
+    if campaign_id is not None:
+        # an aborted sensor stays queued (linked to its run), so resuming the campaign resumes it
+        queue_status = {"completed": "done", "aborted": "queued"}.get(status, "failed")
+        catalogue.set_queue_status(campaign_id, sensor_id, queue_status, run_id)
+    return run_id, status
+
+
+def _settle_campaign(catalogue, campaign_id: int, last: str | None, *, more: bool = False) -> str:
+    """Set the campaign's status once its worker stops: `last` is how its last sensor ended; `more` when the
+    caller goes on with the rest of the queue (it stays running then)."""
+    queue = catalogue.fleet(campaign_id)
+    if all(e["status"] == "done" for e in queue):
+        status = "completed"
+    elif last in ("aborted", "not mounted"):
+        status = "aborted"
+    elif last == "completed" and more:
+        return catalogue.campaign(campaign_id)["status"]
+    else:
+        status = "failed"  # this run failed, or an earlier sensor's did
+    catalogue.set_campaign_status(campaign_id, status)
+    return status
+
+
+def run_campaign(campaign: Campaign, session: Session, *, confirm_mount: ConfirmMount | None = None,
+                 on_run=None) -> list[int]:
     """Preflight, then one run per sensor of the campaign (a persisted queue), each fitted when it ends.
 
     Returns the run ids. Raises :class:`PreflightRefused` before anything moves when the plan breaks a limit.
+    `confirm_mount` is asked before each sensor that must be mounted by hand (see :class:`MountRequest`);
+    without it, such a sensor stops the campaign.
     """
     report = check_campaign(campaign, session)
     if not report.ok:
@@ -192,28 +295,35 @@ def run_campaign(campaign: Campaign, session: Session, *, ask_operator=None, on_
     catalogue = session.catalogue
     campaign_id = catalogue.create_campaign(campaign.name, campaign.plan, campaign.model_dump(mode="json"))
     catalogue.enqueue_sensors(campaign_id, list(campaign.sensors))
-    return continue_campaign(campaign_id, session, ask_operator=ask_operator, on_run=on_run)
+    return continue_campaign(campaign_id, session, confirm_mount=confirm_mount, on_run=on_run)
 
 
-def continue_campaign(campaign_id: int, session: Session, *, ask_operator=None, on_run=None) -> list[int]:
-    """Work through the campaign's queue of sensors (also after a restart)."""
+def continue_campaign(campaign_id: int, session: Session, *, confirm_mount: ConfirmMount | None = None,
+                      on_run=None) -> list[int]:
+    """Work through the campaign's queue of sensors (also after a restart), keeping its status.
+
+    A queued sensor whose last run crashed, was aborted or failed is resumed from that run (its points kept).
+    The campaign ends completed, aborted (a run aborted, a mount not confirmed) or failed.
+    """
     catalogue = session.catalogue
     campaign = Campaign.model_validate(catalogue.campaign(campaign_id)["spec"])
-    runs = []
-    while (sensor_id := catalogue.next_queued_sensor(campaign_id)) is not None:
-        _mount_sensor(session, sensor_id, ask_operator)
-        n_points = len(check_campaign(campaign.model_copy(update={"sensors": (sensor_id,)}), session).points)
-        run_id = catalogue.create_run(campaign_id=campaign_id, sensor_id=sensor_id, plan_name=campaign.plan,
-                                      plan_args=campaign.model_dump(mode="json"),
-                                      provenance=_provenance(session, campaign, sensor_id), n_points_planned=n_points)
-        catalogue.set_queue_status(campaign_id, sensor_id, "running", run_id)
-        if on_run:
-            on_run(run_id, sensor_id)
-        status = _execute(session, campaign, run_id, n_points)
-        catalogue.set_queue_status(campaign_id, sensor_id, "done" if status == "completed" else "failed", run_id)
-        runs.append(run_id)
-        if status != "completed":
-            break
+    catalogue.set_campaign_status(campaign_id, "running")
+    runs, last = [], None
+    try:
+        while (sensor_id := catalogue.next_queued_sensor(campaign_id)) is not None:
+            earlier = catalogue.queued_run(campaign_id, sensor_id)
+            parent = earlier if earlier is not None and \
+                catalogue.run(earlier)["status"] in RESUMABLE_STATUSES else None
+            run_id, last = _run_sensor(session, campaign, campaign_id, sensor_id, parent=parent,
+                                       confirm_mount=confirm_mount, on_run=on_run)
+            if run_id is not None:
+                runs.append(run_id)
+            if last != "completed":
+                break
+    except BaseException as exc:
+        _settle_campaign(catalogue, campaign_id, "failed" if isinstance(exc, Exception) else "aborted")
+        raise
+    _settle_campaign(catalogue, campaign_id, last)
     return runs
 
 
@@ -244,32 +354,63 @@ def fit_inputs(session: Session):
                                  source_distance_sd_mm=getattr(g, "source_distance_sd_mm", None))
 
 
-def resume_run(run_id: int, session: Session, *, on_run=None) -> int:
-    """Start a new run linked to `run_id` that measures only the points its lineage is missing."""
-    catalogue = session.catalogue
+def check_resumable(catalogue, run_id: int) -> dict:
+    """The run, if it may be resumed; else :class:`ResumeRefused` saying why."""
     old = catalogue.run(run_id)
     if old["status"] == "completed":
         raise ResumeRefused(f"run {run_id} is complete; nothing to resume")
-    if old["status"] in ("running", "paused", "suspended"):
+    if old["status"] in LIVE_RUN_STATUSES:
         raise ResumeRefused(f"run {run_id} is {old['status']}; only an ended run can be resumed")
     children = [r["id"] for r in catalogue.runs() if r["parent_run_id"] == run_id]
     if children:
         raise ResumeRefused(f"run {run_id} was already resumed by run {children[-1]}; resume that one")
+    return old
+
+
+def resume_run(run_id: int, session: Session, *, confirm_mount: ConfirmMount | None = None, on_run=None) -> int:
+    """Start a new run linked to `run_id` that measures only the points its lineage is missing.
+
+    The sensor is mounted and its serial checked as for any run (:func:`continue_campaign`). Once it completes,
+    the rest of its campaign waits for :func:`continue_campaign` (:func:`resume_and_continue` does both).
+    """
+    catalogue = session.catalogue
+    old = check_resumable(catalogue, run_id)
     campaign = Campaign.model_validate(old["plan_args"])
-    _mount_sensor(session, old["sensor_id"], None)
-    new_id = catalogue.create_run(campaign_id=old["campaign_id"], sensor_id=old["sensor_id"], plan_name=old["plan_name"],
-                                  plan_args=old["plan_args"], provenance=_provenance(session, campaign, old["sensor_id"]),
-                                  parent_run_id=run_id, n_points_planned=old["n_points_planned"])
-    if old["campaign_id"] is not None:
-        catalogue.set_queue_status(old["campaign_id"], old["sensor_id"], "running", new_id)
-    if on_run:
-        on_run(new_id, old["sensor_id"])
-    status = _execute(session, campaign, new_id, old["n_points_planned"] or 0, lineage=catalogue.lineage(new_id))
-    if old["campaign_id"] is not None:
-        catalogue.set_queue_status(old["campaign_id"], old["sensor_id"], "done" if status == "completed" else "failed",
-                                   new_id)
+    campaign_id = old["campaign_id"]
+    if campaign_id is not None:
+        catalogue.set_campaign_status(campaign_id, "running")
+    try:
+        new_id, status = _run_sensor(session, campaign, campaign_id, old["sensor_id"], parent=run_id,
+                                     n_points=old["n_points_planned"], confirm_mount=confirm_mount, on_run=on_run)
+    except BaseException as exc:
+        if campaign_id is not None:
+            _settle_campaign(catalogue, campaign_id, "failed" if isinstance(exc, Exception) else "aborted")
+        raise
+    if campaign_id is not None:
+        _settle_campaign(catalogue, campaign_id, status, more=True)
+    if new_id is None:
+        raise ResumeRefused(f"sensor {old['sensor_id']} was not confirmed mounted; run {run_id} was not resumed")
     return new_id
 
 
+def resume_and_continue(run_id: int, session: Session, *, confirm_mount: ConfirmMount | None = None,
+                        on_run=None) -> list[int]:
+    """:func:`resume_run`, then the rest of its campaign's queue once it completed; every run started.
+
+    A completed run whose campaign still has sensors queued (a mount that was not confirmed) goes on with them.
+    """
+    catalogue = session.catalogue
+    done = catalogue.run(run_id)
+    if done["status"] == "completed" and done["campaign_id"] is not None \
+            and catalogue.next_queued_sensor(done["campaign_id"]) is not None:
+        return continue_campaign(done["campaign_id"], session, confirm_mount=confirm_mount, on_run=on_run)
+    new_id = resume_run(run_id, session, confirm_mount=confirm_mount, on_run=on_run)
+    run = session.catalogue.run(new_id)
+    if run["status"] != "completed" or run["campaign_id"] is None:
+        return [new_id]
+    return [new_id, *continue_campaign(run["campaign_id"], session, confirm_mount=confirm_mount, on_run=on_run)]
+
+
 __all__ = ["Session", "open_session", "check_campaign", "run_campaign", "continue_campaign", "resume_run",
-           "fit_run", "bench_data", "PreflightRefused", "ResumeRefused"]
+           "resume_and_continue", "check_resumable", "fit_run", "bench_data", "MountRequest", "PreflightRefused",
+           "ResumeRefused", "RESUMABLE_STATUSES"]

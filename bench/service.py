@@ -2,10 +2,14 @@
 and an event bus.
 
 * Campaigns are submitted to a queue (persisted in the catalogue) and run one after another by a worker
-  thread; the web layer only enqueues and reads.
+  thread; the web layer only enqueues and reads. Between the sensors of a fleet the worker waits for the
+  operator to confirm the next mount (status ``mount``). Runs and campaigns a dead server left are marked
+  crashed and aborted at start, and resumed only when asked (:meth:`BenchService.resume_run`,
+  :meth:`BenchService.resume_campaign`).
 * The status (table angles, lamp and shutter, the sensor's temperature and latest frame, the engine's state
-  and progress) is a cache: a status thread refreshes it from the devices while the bench is idle, and the
-  engine's events refresh it during a run, so a request never waits on a serial port.
+  and progress) is a cache: a status thread refreshes it from the devices while no run owns the bench, and
+  during a run the engine's own events (every move, lamp and shutter action and every reading it takes) refresh
+  it, so a request never waits on a serial port and nothing polls a device the engine is driving.
 * Events go to every subscriber through its own bounded buffer: a slow client loses old events, it never
   slows a measurement (research note anchors-orchestration, lesson 10). The publisher hands each event once to
   each event loop with subscribers, however many streams that loop serves; the loop fans it out.
@@ -14,6 +18,7 @@ and an event bus.
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import queue
 import threading
 import time
@@ -27,11 +32,18 @@ from calibration.centroid import CentroidError, find_spot
 
 from .campaign import Campaign
 from .engine import EngineState, IllegalTransition
-from .runner import PreflightRefused, check_campaign, continue_campaign, open_session
+from .runner import (MountRequest, PreflightRefused, ResumeRefused, check_campaign, check_resumable, continue_campaign,
+                     open_session, resume_and_continue)
 
 
 class BenchBusy(IllegalTransition):
     """A manual command (jog, lamp, shutter) while a run owns the bench."""
+
+
+def _utc_now() -> str:
+    """Now, ISO 8601 UTC to the millisecond: a status refreshed several times a second shows it."""
+    now = time.time()
+    return time.strftime("%Y-%m-%dT%H:%M:%S", time.gmtime(now)) + f".{int(now % 1 * 1000):03d}Z"
 
 
 class AsyncSubscription:
@@ -224,9 +236,14 @@ class BenchService:
         self.engine = self.session.engine
         self.engine.subscribe(self._on_engine_event)
         self._bench_lock = threading.RLock()  # manual commands and status polls vs. the worker's runs
-        self._jobs: queue.Queue = queue.Queue()
+        self._jobs: queue.Queue = queue.Queue()  # ("campaign", id) or ("resume", run id); None ends the worker
+        self._pending: set[tuple[str, int]] = set()  # jobs queued or in progress, under _mount_lock
+        self._mount_lock = threading.Condition()
+        self._mount: dict | None = None  # the sensor mount the worker waits for the operator to confirm
+        self._mount_answer: bool | None = None
         self._stop = threading.Event()
         self._status: dict = {"engine": {"state": EngineState.IDLE.value}, "updated_utc": None}
+        self._status_published = 0.0  # when the engine's readings were last published as a "status" event
         self._frame: np.ndarray | None = None
         self._frame_spot: tuple[np.ndarray, dict] | None = None  # (frame, its spot), found when first asked for
         self._frame_size: dict | None = None  # width_px, height_px of the sensor's frames
@@ -236,6 +253,9 @@ class BenchService:
         interrupted = catalogue.mark_interrupted_runs()
         if interrupted:
             catalogue.log_event(None, "startup", f"runs {interrupted} were interrupted and are marked crashed")
+        # not run again by themselves: a bench that starts moving when a server restarts could catch the hands
+        # of whoever is clearing the cause of the crash; the operator resumes them (README, Web dashboard)
+        self.interrupted_campaigns = catalogue.mark_interrupted_campaigns()
 
     # -- life ------------------------------------------------------------------------------------------
     def start(self) -> "BenchService":
@@ -245,6 +265,7 @@ class BenchService:
 
     def close(self) -> None:
         self._stop.set()
+        self._answer_mount(False)  # a worker waiting for a mount ends its campaign
         if self.engine.state not in (EngineState.IDLE,):
             try:
                 self.engine.abort()
@@ -258,43 +279,172 @@ class BenchService:
 
     # -- campaigns ----------------------------------------------------------------------------------
     def dry_run(self, campaign: Campaign):
-        return check_campaign(campaign, self.session)
+        """The campaign's preflight report, for every sensor: :func:`~bench.runner.check_campaign` scales the
+        duration by the number of sensors; the warm-up included in it is scaled alike (as ``sunbench run``
+        prints it), so it stays a part of the duration."""
+        report = check_campaign(campaign, self.session)
+        return dataclasses.replace(report, warmup_s=report.warmup_s * len(campaign.sensors))
 
     def submit(self, campaign: Campaign) -> int:
-        """Preflight and queue a campaign; returns its id. Raises :class:`PreflightRefused` with every violation."""
+        """Preflight and queue a campaign; returns its id. Raises :class:`PreflightRefused` with every violation,
+        :class:`~bench.engine.EstopLatched` while an emergency stop is latched."""
+        self.engine.check_unlatched()
         report = check_campaign(campaign, self.session)
         if not report.ok:
             raise PreflightRefused(report.violations)
         campaign_id = self.catalogue.create_campaign(campaign.name, campaign.plan, campaign.model_dump(mode="json"))
         self.catalogue.enqueue_sensors(campaign_id, list(campaign.sensors))
-        self._jobs.put(campaign_id)
-        self.bus.publish({"kind": "queued", "campaign_id": campaign_id, "points": len(report.points)})
+        self._put(("campaign", campaign_id))
+        self.bus.publish({"kind": "queued", "campaign_id": campaign_id, "points": len(report.points),
+                          "upper_bound": report.upper_bound is not None})
         return campaign_id
+
+    def resume_run(self, run_id: int) -> None:
+        """Queue the resumption of an ended run (a new run measuring only its missing points), then the rest of
+        its campaign. Raises :class:`~bench.runner.ResumeRefused` when it cannot be resumed."""
+        self.engine.check_unlatched()
+        run = check_resumable(self.catalogue, run_id)
+        self._refuse_pending(run["campaign_id"], f"the campaign of run {run_id}", ("resume", run_id))
+        self._put(("resume", run_id))
+        self.bus.publish({"kind": "resume-queued", "run_id": run_id, "campaign_id": run["campaign_id"]})
+
+    def resume_campaign(self, campaign_id: int) -> None:
+        """Queue the rest of a campaign that stopped (aborted, failed, or left when the server stopped): its
+        queued and failed sensors, each resumed from its last run when it has one."""
+        self.engine.check_unlatched()
+        campaign = self.catalogue.campaign(campaign_id)
+        if campaign["status"] == "completed":
+            raise ResumeRefused(f"campaign {campaign_id} is complete; nothing to resume")
+        self._refuse_pending(campaign_id, f"campaign {campaign_id}", ("campaign", campaign_id))
+        for entry in self.catalogue.fleet(campaign_id):
+            if entry["status"] == "failed":  # tried again, from its run (the operator fixed the cause)
+                self.catalogue.set_queue_status(campaign_id, entry["sensor_id"], "queued")
+        self._put(("campaign", campaign_id))
+        self.bus.publish({"kind": "resume-queued", "campaign_id": campaign_id})
+
+    def _refuse_pending(self, campaign_id: int | None, what: str, job: tuple[str, int]) -> None:
+        with self._mount_lock:
+            pending = list(self._pending)
+        if job in pending or campaign_id is not None and any(self._job_campaign(j) == campaign_id for j in pending):
+            raise ResumeRefused(f"{what} is already queued or running")
+
+    def _job_campaign(self, job: tuple[str, int]) -> int | None:
+        kind, target = job
+        return target if kind == "campaign" else self.catalogue.run(target)["campaign_id"]
+
+    def _put(self, job: tuple[str, int]) -> None:
+        with self._mount_lock:
+            self._pending.add(job)
+        self._jobs.put(job)
 
     def _worker(self) -> None:
         while not self._stop.is_set():
-            campaign_id = self._jobs.get()
-            if campaign_id is None:
+            job = self._jobs.get()
+            if job is None:
                 return
+            kind, target = job
+            campaign_id = self._job_campaign(job)
             with self._bench_lock:
                 try:
-                    continue_campaign(campaign_id, self.session, on_run=self._on_run)
+                    if kind == "campaign":
+                        continue_campaign(target, self.session, confirm_mount=self._confirm_mount, on_run=self._on_run)
+                    else:
+                        resume_and_continue(target, self.session, confirm_mount=self._confirm_mount,
+                                            on_run=self._on_run)
                 except Exception as exc:  # noqa: BLE001 - the service outlives a failed campaign
                     self.catalogue.log_event(None, "error", f"campaign {campaign_id}: {exc}")
                     self.bus.publish({"kind": "error", "campaign_id": campaign_id, "message": str(exc)})
-            self.bus.publish({"kind": "campaign-finished", "campaign_id": campaign_id})
+                finally:
+                    with self._mount_lock:
+                        self._pending.discard(job)
+            self.bus.publish({"kind": "campaign-finished", "campaign_id": campaign_id,
+                              **self._campaign_outcome(campaign_id)})
+
+    def _campaign_outcome(self, campaign_id: int | None) -> dict:
+        """How the campaign stands now, and why when it did not complete (its last run's exit reason)."""
+        if campaign_id is None:
+            return {}
+        status = self.catalogue.campaign(campaign_id)["status"]
+        runs = self.catalogue.runs(campaign_id)
+        reason = runs[-1]["exit_reason"] if runs and status != "completed" else None
+        return {"status": status, "reason": reason}
+
+    # -- sensor mounts between the runs of a fleet ------------------------------------------------------
+    def _confirm_mount(self, request: MountRequest) -> bool:
+        """In the worker: ask the dashboard to confirm `request`'s mount and wait for the answer.
+
+        The bench is the operator's meanwhile (jog, lamp, shutter), so the worker lets go of it."""
+        prompt = {"campaign_id": request.campaign_id, "sensor_id": request.sensor_id, "position": request.position,
+                  "count": request.count, "resumes_run": request.resumes_run, "prompt": request.prompt()}
+        with self._mount_lock:
+            self._mount, self._mount_answer = prompt, None
+        self._status["mount"] = prompt
+        self.catalogue.log_event(request.resumes_run, "mount", f"waiting for the operator: {request.prompt()}")
+        self.bus.publish({"kind": "mount", **prompt})
+        self._bench_lock.release()
+        try:
+            with self._mount_lock:
+                while self._mount_answer is None and not self._stop.is_set():
+                    self._mount_lock.wait(0.5)
+                answer = bool(self._mount_answer)
+                self._mount = None
+        finally:
+            self._bench_lock.acquire()
+            self._status["mount"] = None
+        self.bus.publish({"kind": "mount-answered", "sensor_id": request.sensor_id, "confirmed": answer})
+        return answer
+
+    def confirm_mount(self, sensor_id: str) -> None:
+        """The operator says `sensor_id` is on the bench: its run starts (after its serial is checked).
+
+        Raises :class:`~bench.engine.IllegalTransition` when no mount is awaited, or another sensor's."""
+        self.engine.check_unlatched()
+        with self._mount_lock:
+            if self._mount is None:
+                raise IllegalTransition("no sensor mount is awaited")
+            if self._mount["sensor_id"] != sensor_id:
+                raise IllegalTransition(f"the bench awaits sensor {self._mount['sensor_id']}, not {sensor_id}")
+        self._answer_mount(True)
+
+    def _answer_mount(self, answer: bool) -> bool:
+        """Answer the awaited mount, if any; True when one was awaited."""
+        with self._mount_lock:
+            if self._mount is None or self._mount_answer is not None:
+                return False
+            self._mount_answer = answer
+            self._mount_lock.notify_all()
+            return True
 
     def _on_run(self, run_id: int, sensor_id: str) -> None:
         self._progress = {"run_id": run_id, "sensor_id": sensor_id, "index": 0, "total": None, "eta_s": None}
         self.bus.publish({"kind": "run-started", "run_id": run_id, "sensor_id": sensor_id})
 
+    # what the engine's readings may change in the cached status, by event kind
+    _READINGS = {"table": ("azimuth_deg", "zenith_deg", "moving"),
+                 "source": ("lamp_on", "warm", "shutter_open", "fault", "output", "output_unit"),
+                 "sensor": ("temperature_c", "exposure_ms")}
+
     def _on_engine_event(self, event) -> None:
         data = {"kind": event.kind, "run_id": event.run_id, **event.data}
+        fields = self._READINGS.get(event.kind)
+        if fields is not None:  # the engine moved, switched or read something: the cache follows it
+            merged = {**(self._status.get(event.kind) or {}), **{k: event.data[k] for k in fields if k in event.data}}
+            if event.kind != "table" or {"azimuth_deg", "zenith_deg"} <= merged.keys():
+                self._status[event.kind] = merged  # replaced, never mutated: readers copy the status unlocked
+                self._status["updated_utc"] = _utc_now()
+            # the streams get them as "status" events, as from the idle poller, at most one per status period:
+            # one event per move and reading would triple what every client is sent during a run
+            now = time.monotonic()
+            if now - self._status_published >= self.status_period_s:
+                self._status_published = now
+                self.bus.publish({"kind": "status", **{k: self._status.get(k) for k in ("table", "source", "sensor")}})
+            return
         if event.kind == "point":
             self._progress.update(index=event.data["index"], total=event.data["total"], eta_s=event.data["eta_s"])
             self._frame = self.engine.last_frame
-            self._status["table"] = {"azimuth_deg": event.data["azimuth_deg"],
-                                     "zenith_deg": event.data["zenith_stage_deg"], "moving": False}
+            self._status["updated_utc"] = _utc_now()
+        elif event.kind == "finished":
+            self._progress = {**self._progress, "ended_unsafe": event.data.get("unsafe")}
         self._status["engine"] = {"state": self.engine.state.value, **self._progress}
         self.bus.publish(data)
 
@@ -306,31 +456,40 @@ class BenchService:
         self.engine.resume()
 
     def abort(self) -> None:
+        if self._answer_mount(False):  # waiting for a sensor mount: the campaign stops there
+            return
         self.engine.abort()
 
-    def emergency_stop(self) -> None:
-        self.engine.emergency_stop()
+    def emergency_stop(self) -> list[str]:
+        """Stop everything and latch (:meth:`bench.engine.RunEngine.emergency_stop`); returns what could not be
+        made safe."""
+        return self.engine.emergency_stop()
 
-    # -- manual commands ------------------------------------------------------------------------------
+    def acknowledge_estop(self) -> None:
+        self.engine.acknowledge_estop()
+        self.refresh_status()
+
+    # -- manual commands (the engine acts: it refuses them while latched, and an e-stop interrupts them) --
     def _idle(self):
-        if self.engine.state is not EngineState.IDLE or not self._bench_lock.acquire(timeout=0.5):
+        if self.engine.state not in (EngineState.IDLE, EngineState.ESTOP) \
+                or not self._bench_lock.acquire(timeout=0.5):
             raise BenchBusy(f"a run owns the bench (engine {self.engine.state.value})")
         return self._bench_lock
 
     def jog(self, azimuth_deg: float, zenith_deg: float) -> None:
-        """Move the table; limits are checked before it moves (LimitError)."""
+        """Move the table; limits are checked before it moves (LimitError). An emergency stop that interrupts
+        it raises :class:`~bench.engine.EstopLatched` naming where the table stopped."""
         lock = self._idle()
         try:
-            self.session.devices.table.move_to(azimuth_deg, zenith_deg)
+            self.engine.jog(azimuth_deg, zenith_deg)
         finally:
             lock.release()
-        self.refresh_status()
+            self.refresh_status()
 
     def set_lamp(self, on: bool) -> None:
         lock = self._idle()
         try:
-            source = self.session.devices.source
-            source.lamp_on() if on else source.standby()
+            self.engine.set_lamp(on)
         finally:
             lock.release()
         self.refresh_status()
@@ -338,8 +497,7 @@ class BenchService:
     def set_shutter(self, open_: bool) -> None:
         lock = self._idle()
         try:
-            source = self.session.devices.source
-            source.open_shutter() if open_ else source.close_shutter()
+            self.engine.set_shutter(open_)
         finally:
             lock.release()
         self.refresh_status()
@@ -369,7 +527,8 @@ class BenchService:
 
     def refresh_status(self) -> None:
         """Read the devices (only while no run owns the bench) into the cache."""
-        if self.engine.state is not EngineState.IDLE or not self._bench_lock.acquire(blocking=False):
+        if self.engine.state not in (EngineState.IDLE, EngineState.ESTOP) \
+                or not self._bench_lock.acquire(blocking=False):
             return
         try:
             d = self.session.devices
@@ -389,8 +548,7 @@ class BenchService:
         finally:
             self._bench_lock.release()
         self._status.update(table=table, source=asdict(source), sensor=sensor, error=None,
-                            engine={"state": self.engine.state.value, **self._progress},
-                            updated_utc=time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()))
+                            engine={"state": self.engine.state.value, **self._progress}, updated_utc=_utc_now())
         self.bus.publish({"kind": "status", **{k: self._status[k] for k in ("table", "source", "sensor")}})
 
     def _poller(self) -> None:

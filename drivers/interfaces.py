@@ -230,6 +230,12 @@ class SunSimulator(ABC):
         """Safe state between runs: shutter closed, lamp at standby (off or at its idle setting)."""
 
     @abstractmethod
+    def lamp_off(self) -> None:
+        """Put the light out without relying on the shutter: an arc lamp's supply stopped (the next run strikes
+        it again and waits for its warm-up), an LED switched off. The fallback when the shutter cannot be
+        closed; raises only when the lamp could not be switched off."""
+
+    @abstractmethod
     def open_shutter(self) -> None: ...
 
     @abstractmethod
@@ -271,6 +277,8 @@ class ImageSensor(ABC):
     """A sun sensor that delivers frames (the CMOS pinhole module, a USB camera)."""
 
     name: str
+    #: True when :meth:`identify`'s serial is the sensor's own (the run checks it is the sensor it expects)
+    reports_serial: bool = False
 
     @abstractmethod
     def identify(self) -> SensorIdentity: ...

@@ -12,11 +12,14 @@ On a simulated bench the drivers get the simulation's clock, so warm-up runs in 
 
 Standby. Between runs the arc lamp keeps burning at its preset with the shutter closed: a xenon lamp is not
 re-struck between runs, because every ignition wears the electrodes and starts the warm-up over. The LED
-source just switches its output off (it is warm again within seconds).
+source just switches its output off (it is warm again within seconds). When the shutter cannot be closed, the
+run engine puts the light out with :meth:`~drivers.interfaces.SunSimulator.lamp_off` instead (the arc re-struck
+later, with its warm-up).
 """
 
 from __future__ import annotations
 
+import logging
 import math
 
 from .errors import DeviceFault, LimitError
@@ -24,6 +27,9 @@ from .interfaces import SourceStatus, SunSimulator
 from .oriel69907 import Oriel69907
 from .scpi_supply import ScpiSupply
 from .shutter import ThorlabsSC10
+
+log = logging.getLogger(__name__)
+log.addHandler(logging.NullHandler())
 
 # Warm-up defaults [s]: bench choices, not vendor figures. A xenon arc is usually left 20–30 min before
 # measurements; an LED's junction settles within about a minute. A simulated bench passes the warm-up time
@@ -76,9 +82,13 @@ class ArcLampSource(SunSimulator):
             self.supply.start()
 
     def lamp_off(self) -> None:
-        """Close the shutter and stop the lamp (end of the day, not between runs)."""
-        self.close_shutter()
+        """Stop the lamp (``STOP``), then close the shutter if it answers: the end of the day, and the fallback
+        when the shutter cannot be closed (so a shutter that fails is logged, not raised: the lamp is out)."""
         self.supply.stop()
+        try:
+            self.close_shutter()
+        except Exception as exc:  # noqa: BLE001 - see the docstring
+            log.warning("%s: lamp stopped, but the shutter did not close: %s", self.name, exc)
 
     def standby(self) -> None:
         """Close the shutter; the lamp keeps burning at its preset (see the module docstring)."""
@@ -155,6 +165,10 @@ class LedSource(SunSimulator):
 
     def standby(self) -> None:
         """Switch the output off: the LED is dark."""
+        self.supply.set_output(False)
+
+    def lamp_off(self) -> None:
+        """Switch the output off (the LED has no shutter but its output)."""
         self.supply.set_output(False)
 
     def open_shutter(self) -> None:

@@ -1,7 +1,11 @@
 """What the command-line tests share: an in-process runner of `sunbench`, the rows of its metrics table, and
 the check that bad input is refused as a user error. (tests/ is on pytest's path: pyproject's `pythonpath`.)"""
 
+import os
 import re
+import subprocess
+import sys
+from pathlib import Path
 
 from typer.testing import CliRunner
 
@@ -17,6 +21,18 @@ def invoke(*args):
     result = runner.invoke(app, [str(a) for a in args])
     assert result.exception is None or isinstance(result.exception, SystemExit), result.exception
     return result
+
+
+SUNBENCH = Path(sys.executable).with_name("sunbench")
+# no SUNBENCH_CATALOGUE from the caller's shell: every test names its catalogue
+ENV = {**{k: v for k, v in os.environ.items() if k != "SUNBENCH_CATALOGUE"},
+       "COLUMNS": "160", "NO_COLOR": "1", "TERM": "dumb"}
+
+
+def sunbench_process(*args, cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess:
+    """`sunbench ARGS` as its own process (its own catalogue connection and locks), output captured."""
+    return subprocess.run([str(SUNBENCH), *map(str, args)], capture_output=True, text=True, env=ENV, cwd=cwd,
+                          timeout=timeout, stdin=subprocess.DEVNULL)
 
 
 def method_rows(stdout: str) -> dict[str, bool]:

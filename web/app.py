@@ -16,7 +16,7 @@ from fastapi.routing import APIRoute
 
 from bench.catalogue import CatalogueError
 from bench.engine import IllegalTransition
-from bench.runner import PreflightRefused
+from bench.runner import PreflightRefused, ResumeRefused
 from drivers.errors import LimitError
 
 from .routes import campaigns, commands, downloads, events, fits, pages, run, runs, status
@@ -27,7 +27,8 @@ TAGS = [
     {"name": "status", "description": "The cached bench status and the live frame."},
     {"name": "bench", "description": "Manual commands (token required); refused while a run owns the bench."},
     {"name": "campaigns", "description": "Preflight, queue and follow calibration campaigns."},
-    {"name": "run control", "description": "Pause, resume or abort the run in progress (token required)."},
+    {"name": "run control", "description": "Pause, resume or abort the run in progress, confirm a fleet's next "
+                                           "sensor (token required)."},
     {"name": "runs", "description": "Recorded runs, their points and fitted calibrations."},
     {"name": "downloads", "description": "Bench data CSV, calibration JSON and C headers."},
     {"name": "events", "description": "Server-sent events of the bench."},
@@ -46,6 +47,10 @@ def _detail(status_code: int, detail) -> JSONResponse:
 def _install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(IllegalTransition)  # BenchBusy is one too
     async def _conflict(request: Request, exc: IllegalTransition):
+        return _detail(409, str(exc))
+
+    @app.exception_handler(ResumeRefused)
+    async def _not_resumable(request: Request, exc: ResumeRefused):
         return _detail(409, str(exc))
 
     @app.exception_handler(LimitError)

@@ -29,12 +29,15 @@ class TablePublic(_Out):
 
 class EnginePublic(_Out):
     model_config = ConfigDict(extra="allow")
-    state: str
+    state: str = Field(description="idle, running, pausing, paused, suspended, aborting, faulted, or estop: an "
+                                   "emergency stop, latched until acknowledged (POST /api/stop/acknowledge)")
     run_id: int | None = None
     sensor_id: str | None = None
     index: int | None = None
     total: int | None = None
     eta_s: float | None = None
+    ended_unsafe: str | None = Field(None, description="Set when the run ended without the bench made safe "
+                                                      "(the shutter did not close …): what was not, in words")
 
 
 class SensorStatusPublic(_Out):
@@ -44,8 +47,19 @@ class SensorStatusPublic(_Out):
     height_px: int | None = Field(None, description="Height of the sensor's frames [px]")
 
 
+class MountPublic(_Out):
+    """A sensor the bench waits for the operator to mount and confirm (between the sensors of a fleet)."""
+    campaign_id: int | None = None
+    sensor_id: str = Field(description="Serial of the sensor to mount")
+    position: int = Field(description="Its place in the campaign's queue, from 0")
+    count: int = Field(description="Sensors in the campaign's queue")
+    resumes_run: int | None = Field(None, description="The run of this sensor its run will resume")
+    prompt: str = Field(description="What to do, in words")
+
+
 class StatusPublic(_Out):
     engine: EnginePublic
+    mount: MountPublic | None = Field(None, description="The sensor mount awaited (POST /api/run/mount), if any")
     table: TablePublic | None = None
     source: dict[str, Any] | None = None
     sensor: SensorStatusPublic | None = None
@@ -77,12 +91,22 @@ class ShutterCommand(BaseModel):
     open: bool
 
 
+class MountConfirm(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    sensor_id: str = Field(min_length=1, description="The sensor the operator mounted: the one the bench awaits")
+
+
 # -- campaigns --------------------------------------------------------------------------------------------
 class DryRunPublic(_Out):
-    points: int
-    frames: int
-    moves: int
-    duration_s: float
+    points: int = Field(description="Points per sensor (at most this many when `upper_bound`)")
+    frames: int = Field(description="Frames per sensor, the probes included (at most, when `upper_bound`)")
+    moves: int = Field(description="Table moves per sensor (at most, when `upper_bound`)")
+    duration_s: float = Field(description="Estimated duration of the whole campaign, every sensor [s] "
+                                          "(at most, when `upper_bound`)")
+    warmup_s: float = Field(description="Of `duration_s`, the lamp's warm-up [s]")
+    upper_bound: bool = Field(description="The plan may stop early (a stopping rule): the counts and the "
+                                          "duration are its cap, every point counted")
+    upper_bound_reason: str | None = Field(None, description="Why they are upper bounds, in words")
     violations: list[str]
 
 
@@ -233,6 +257,46 @@ class LogEventPublic(_Out):
     kind: str = Field(description="run-started, state, log, warning, error, finished, …")
     message: str
     data: dict[str, Any] | None = None
+
+
+class _DecisionPublic(_Out):
+    """The physical plan's stopping rule after a batch (bench/plans.py physical_plan,
+    calibration.design_of_experiments.StopDecision)."""
+    stop: bool = Field(description="Every parameter's 1σ is below its target and the check RMS is at most its own")
+    reasons: list[str] = Field(description="What was not met yet (empty when `stop`), or why no fit was made")
+    n_fit_directions: int = Field(description="Directions fitted so far")
+    n_check_directions: int = Field(description="Check directions scored (never fitted)")
+    check_rms_deg: float | None = Field(None, description="Vector RMS of the check directions (seed 003 eq. 13) [°]")
+    check_max_deg: float | None = Field(None, description="Largest check error [°]")
+    sigmas: dict[str, float | None] = Field({}, description="1σ of every fitted parameter [its unit]")
+    targets: dict[str, float | None] = Field({}, description="The largest 1σ each parameter may keep [its unit]")
+
+
+class StopDecisionPublic(_DecisionPublic):
+    batch: int = Field(description="Batch number, from 1 (record `physical_batch_<batch>`)")
+
+
+class PhysicalStopPublic(_DecisionPublic):
+    reason: str = Field(description="\"targets met\" or \"cap reached\"")
+    batches_measured: int
+
+
+class PhysicalPlanPublic(_Out):
+    check_rms_target_deg: float | None = Field(None, description="Largest check RMS that stops the run [°]")
+    n_batches: int | None = Field(None, description="Batches of the design: the cap")
+    n_fit_directions: int | None = Field(None, description="Fit directions of every batch: the cap")
+    n_check_directions: int | None = None
+    batches: list[StopDecisionPublic] = Field(description="The decision after each measured batch, in order")
+    stop: PhysicalStopPublic | None = Field(None, description="The final decision (absent until the plan ends)")
+
+
+class RunValuesPublic(_Out):
+    run_id: int
+    values: dict[str, Any] = Field(description="Every value the run's plan recorded, by key (exposure_ms, "
+                                               "centre_px, tilt_stage, physical_design, physical_batch_<k>, "
+                                               "physical_stop, …), as `sunbench show` reads them")
+    physical: PhysicalPlanPublic | None = Field(None, description="The physical plan's batches and stop, "
+                                                                  "typed; null for other plans")
 
 
 class RunLogPublic(_Out):

@@ -20,7 +20,7 @@ from .clock import SimClock
 from .lamp import LED, XENON
 from .motion import AxisSpec
 from .raytrace import SensorOptics
-from .world import SensorTruth, SimWorld
+from .world import SensorTruth, SimWorld, fleet_sensor
 
 
 class _Strict(BaseModel):
@@ -150,6 +150,13 @@ class SimBench:
                               temperature_c=config.temperature_c, axis_order=config.axis_order)
         self.devices = {**self._table(), **self._source(), **self._sensor()}
         self._registered: list[str] = []
+
+    def mount_sensor(self, serial: str) -> SensorTruth:
+        """Put the sensor of serial `serial` on the bench (what the operator does between the sensors of a
+        fleet): the configured sensor for its own serial, any other built from its serial around it
+        (:func:`~drivers.sim.world.fleet_sensor`). The module then identifies itself with that serial."""
+        self.world.sensor = fleet_sensor(self.config.sensor.truth(), serial)
+        return self.world.sensor
 
     def _table(self) -> dict:
         az, zen = self.config.azimuth_axis.spec(), self.config.zenith_axis.spec()

@@ -72,6 +72,28 @@ class SensorTruth:
                                    hole_axis_deg=self.aperture_axis_deg)
 
 
+def fleet_sensor(base: SensorTruth, serial: str) -> SensorTruth:
+    """The simulated sensor of serial `serial`: `base` itself for its own serial, any other a flight sensor of
+    the same design with its own build errors drawn around `base` from the serial alone.
+
+    A serial's build depends on nothing else (not on the sensors mounted before it), so a fleet resumed in
+    another process measures the same sensor. Draws are clipped at 3σ and the air gap kept above half the
+    mask, so every serial is a sensor the ray trace accepts.
+    """
+    if serial == base.serial:
+        return base
+    rng = np.random.default_rng(zlib.crc32(serial.encode()))
+    draw = lambda sd: float(np.clip(rng.normal(0.0, 1.0), -3.0, 3.0)) * sd  # noqa: E731
+    b = base.build
+    build = dataclasses.replace(
+        b, x0_px=b.x0_px + draw(6.0), y0_px=b.y0_px + draw(6.0),
+        gap_mm=max(b.gap_mm + draw(0.03), (b.gap_mm + b.mask_thickness_mm / 2) / 2),
+        glass_mm=max(b.glass_mm + draw(0.03), 0.0), tilt_x_deg=draw(0.2), tilt_y_deg=draw(0.2),
+        rotation_deg=draw(1.5))
+    return dataclasses.replace(base, build=build, serial=serial,
+                               aperture_ellipticity=abs(base.aperture_ellipticity * (1 + draw(0.3))))
+
+
 @dataclass
 class SimWorld:
     """Shared truth of one simulated bench (see the module docstring).

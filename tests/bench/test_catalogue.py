@@ -129,11 +129,14 @@ def test_files_that_are_not_catalogues_are_refused(tmp_path):
 
 def test_a_second_writer_is_refused_until_the_first_closes(db):
     first = Catalogue(db)
-    with pytest.raises(CatalogueError, match=r"already open for writing \(pid \d+"):
+    with pytest.raises(CatalogueError, match=r"is in use by pid \d+ \(\S+") as refused:
         Catalogue(db)
+    assert "readonly" not in str(refused.value)  # said in the words of the command line, not of this API
+    assert Catalogue.writer(db).startswith(f"pid {os.getpid()} (")
     with Catalogue(db, readonly=True):  # readers are always welcome
         pass
     first.close()
+    assert Catalogue.writer(db) is None
     Catalogue(db).close()
 
 

@@ -26,7 +26,7 @@ from bench.plans import make_plan
 from bench.preflight import preflight
 from calibration.centroid import SpotFlag
 
-from clitools import ALL_METHODS, assert_user_error_text, flat, invoke, method_rows
+from clitools import ALL_METHODS, assert_user_error_text, flat, invoke, method_rows, sunbench_process
 
 ROOT = Path(__file__).resolve().parents[2]
 SEED003 = ROOT / "examples" / "seed003.yaml"
@@ -98,8 +98,29 @@ def test_dry_run_runs_nothing(workdir):
     assert proc.returncode == 0, proc.stderr
     assert flat(proc.stdout).startswith("preflight: 80 points, 313 frames")
     assert not re.search(r"^\d+$", proc.stdout, re.M) and "run 1" not in proc.stdout  # no run id, no summary
-    with Catalogue(db, readonly=True) as cat:
-        assert cat.runs() == [] and cat.campaigns() == []
+    assert not db.exists()  # a dry run writes nothing: it does not even open the catalogue
+
+
+# a real bench (nothing listens there: connecting would fail, but nothing may even try while it is in use)
+REAL_BENCH = """\
+simulation: null
+devices:
+  table: {kind: lx200, url: "socket://127.0.0.1:9"}
+  source: {kind: led, url: "socket://127.0.0.1:9"}
+  sensor: {kind: cmos, url: "socket://127.0.0.1:9"}
+"""
+
+
+def test_a_dry_run_leaves_a_real_bench_alone_while_another_process_drives_it(workdir):
+    bench = workdir / "real.yaml"
+    bench.write_text(REAL_BENCH)
+    db = workdir / "busy.sqlite"
+    with Catalogue(db):  # what a server driving the bench holds: its devices are that process's
+        proc = sunbench("run", SEED003, "--dry-run", "--bench", bench, "--catalogue", db, cwd=workdir)
+    assert_user_error_text(proc.stderr, proc.returncode, f"the bench is in use by pid {os.getpid()}",
+                           "dry-run the campaign on its dashboard")
+    proc = sunbench("run", SEED003, "--yes", "--bench", bench, "--catalogue", db, cwd=workdir)
+    assert proc.returncode == 2 and "--yes confirms sensor mounts only on a simulated bench" in flat(proc.stderr)
 
 
 @pytest.mark.parametrize("edit, fragments", [
@@ -263,11 +284,20 @@ def test_a_fleet_campaign_runs_every_sensor_and_fleet_prints_a_row_each(workdir)
     campaign = workdir / "fleet.yaml"
     campaign.write_text(SMALL.format(name="fleet", sensors="[A, B, C]"))
     db = workdir / "fleet.sqlite"
-    proc = sunbench("run", campaign, "--time-scale", 0, "--catalogue", db, cwd=workdir)
+    proc = sunbench("run", campaign, "--time-scale", 0, "--catalogue", db, "--yes", cwd=workdir)
     assert proc.returncode == 0, proc.stderr
     runs = runs_in(db)
     assert [(r["sensor_id"], r["status"], r["n_points_recorded"]) for r in runs] == \
         [(s, "completed", 40) for s in "ABC"]
+    # the first sensor is checked by its serial alone; each next one is confirmed mounted (here by --yes)
+    text = flat(proc.stderr)
+    assert "mount sensor A" not in text
+    for i, sensor in ((2, "B"), (3, "C")):
+        assert f"mount sensor {sensor} on the bench (sensor {i} of 3 of campaign 1): confirmed (--yes)" in text
+    with Catalogue(db, readonly=True) as cat:
+        assert [r["provenance"]["devices"]["sensor"] for r in runs] == \
+            [f"SB-CMOS-PINHOLE, serial {s}, firmware 1.0.0" for s in "ABC"]  # what the module said, per run
+        assert cat.campaign(runs[0]["campaign_id"])["status"] == "completed"
     assert proc.stdout.strip().splitlines()[-1] == str(runs[-1]["id"])
     for r in runs:
         assert f"run {r['id']} ({r['sensor_id']}): completed" in proc.stdout
@@ -285,6 +315,32 @@ def test_a_fleet_campaign_runs_every_sensor_and_fleet_prints_a_row_each(workdir)
         assert cells[1:4] == [r["sensor_id"], "done", str(r["id"])], cells
         rms = [float(c) for c in cells[-3:]]
         assert all(0 < v < 1 for v in rms), cells  # held-out RMS of a good fit: hundredths of a degree
+
+
+def test_the_operator_confirms_each_next_sensor_at_the_prompt_and_resume_goes_on(workdir):
+    campaign = workdir / "asked.yaml"
+    campaign.write_text(SMALL.format(name="asked", sensors="[A, B, C]"))
+    db = workdir / "asked.sqlite"
+    proc = subprocess.run([str(SUNBENCH), "run", str(campaign), "--time-scale", "0", "--catalogue", str(db)],
+                          input="y\nn\n", capture_output=True, text=True, env=ENV, cwd=workdir, timeout=120)
+    assert proc.returncode == 1, proc.stderr  # the campaign did not complete
+    text = flat(proc.stderr)
+    assert "Mount sensor B on the bench (sensor 2 of 3 of campaign 1). Is it mounted? [y/N]" in text
+    assert "Mount sensor C on the bench (sensor 3 of 3 of campaign 1). Is it mounted?" in text
+    runs = runs_in(db)
+    assert [(r["sensor_id"], r["status"]) for r in runs] == [("A", "completed"), ("B", "completed")]
+    assert proc.stdout.strip().splitlines()[-1] == str(runs[-1]["id"])
+    assert f"campaign 1: aborted; `sunbench resume {runs[-1]['id']}` goes on with it" in flat(proc.stdout)
+
+    # nobody at the terminal: no answer is no confirmation
+    proc = sunbench_process("resume", runs[-1]["id"], "--time-scale", 0, "--catalogue", db, cwd=workdir)
+    assert proc.returncode == 1 and "no answer: the sensor was not confirmed" in flat(proc.stderr)
+    assert len(runs_in(db)) == 2
+    proc = sunbench("resume", runs[-1]["id"], "--time-scale", 0, "--catalogue", db, "--yes", cwd=workdir)
+    assert proc.returncode == 0, proc.stderr
+    assert [(r["sensor_id"], r["status"]) for r in runs_in(db)][-1] == ("C", "completed")
+    with Catalogue(db, readonly=True) as cat:
+        assert cat.campaign(1)["status"] == "completed"
 
 
 def test_fleet_of_an_unknown_campaign(workdir, seed003_run):
@@ -344,7 +400,10 @@ def test_sigint_aborts_a_running_run_and_records_it(workdir):
     assert messages[-1] == ("state", "aborting → idle")
     # finalisation (shutter closed, lamp to standby, table stopped) journals a warning only when it fails
     assert not [m for kind, m in messages if kind == "warning" and "finalisation" in m], messages
-    assert queue["status"] == "failed"  # not done: `sunbench resume` picks it up
+    # not done: still queued, linked to its run, so resuming the campaign resumes that run
+    assert (queue["status"], queue["run_id"]) == ("queued", run["id"])
+    with Catalogue(db, readonly=True) as cat:
+        assert cat.campaign(run["campaign_id"])["status"] == "aborted"
 
 
 def test_sigint_leaves_the_shutter_closed_and_the_lamp_in_standby(workdir, monkeypatch):
@@ -373,3 +432,33 @@ def test_sigint_leaves_the_shutter_closed_and_the_lamp_in_standby(workdir, monke
     assert not world.lamp.shutter_open and world.irradiance() == 0.0  # shutter closed
     assert world.lamp.on  # standby: a xenon lamp keeps burning behind its closed shutter
     assert not world.azimuth.busy() and not world.zenith.busy()  # table stopped
+
+
+def test_a_run_that_could_not_close_the_shutter_is_shown_ended_unsafe(workdir, monkeypatch):
+    """The shutter's cable pulled after the last point: `run` and `show` say the run ended unsafe, and that the
+    lamp was switched off instead of left at standby behind the open shutter."""
+
+    def pull_the_shutter_cable_at_the_end(session):
+        shutter = session.devices.sim.devices["shutter"]
+        session.engine.subscribe(lambda e: e.kind == "point" and e.data["index"] == e.data["total"]
+                                 and setattr(shutter.faults, "disconnected", True))
+
+    sessions = _capture_sessions(monkeypatch, pull_the_shutter_cable_at_the_end)
+    campaign = workdir / "unsafe.yaml"
+    campaign.write_text(SMALL.format(name="unsafe", sensors="[SIM-0001]"))
+    db = workdir / "unsafe.sqlite"
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        result = invoke("run", campaign, "--time-scale", 0, "--catalogue", db)
+    finally:
+        for s, handler in handlers.items():
+            signal.signal(s, handler)
+    assert result.exit_code == 1, result.output
+    (run,) = runs_in(db)
+    text = flat(result.stdout)
+    assert f"run {run['id']} ended unsafe: the shutter did not close" in text, result.stdout
+    assert "the lamp was switched off instead" in text and "see to the bench before the next run" in text
+    assert not sessions[0].devices.sim.world.lamp.on  # out, not burning behind the open shutter
+    shown = invoke("show", run["id"], "--catalogue", db)
+    assert shown.exit_code == 0, shown.output
+    assert f"run {run['id']} ended unsafe: the shutter did not close" in flat(shown.stdout)

@@ -155,6 +155,9 @@ def test_abort_and_emergency_stop_leave_the_bench_safe(session):
         assert run["status"] == "aborted"
         assert ("emergency" in run["exit_reason"]) == (command == "emergency_stop")
         assert not world.lamp.shutter_open and not world.azimuth.busy() and not world.zenith.busy()
+        if command == "emergency_stop":  # latched until acknowledged
+            assert engine.state is EngineState.ESTOP
+            engine.acknowledge_estop()
         assert engine.state is EngineState.IDLE
         engine._listeners.clear()
 
@@ -271,3 +274,135 @@ def test_a_limit_switch_that_stops_the_table_short_fails_the_run(session):
     run = session.catalogue.run(run_id)
     assert run["status"] == "failed" and ("limit switch" in run["exit_reason"] or "not at" in run["exit_reason"])
     assert not world.lamp.shutter_open
+
+
+# -- issue 10: a shutter that does not answer, the latched emergency stop, stalled axes ---------------------------
+def test_a_shutter_that_does_not_answer_at_the_end_puts_the_lamp_out_and_the_run_ended_unsafe(session):
+    world = session.devices.sim.world
+    shutter = session.devices.sim.devices["shutter"]
+    # the shutter's cable is pulled after the last point: the plan's closing of the shutter and the
+    # finalisation's both fail, and an arc lamp at standby would go on shining through the open shutter
+    session.engine.subscribe(lambda e: e.kind == "point" and e.data["index"] == e.data["total"]
+                             and setattr(shutter.faults, "disconnected", True))
+    (run_id,) = run_campaign(SMALL, session)
+    run = session.catalogue.run(run_id)
+    assert run["status"] == "failed" and "shutter" in run["exit_reason"]
+    assert "ended unsafe: the shutter did not close" in run["exit_reason"]
+    assert "the lamp was switched off instead" in run["exit_reason"]
+    (unsafe,) = [e for e in session.catalogue.events(run_id) if e["kind"] == "unsafe"]
+    assert unsafe["message"].startswith("ended unsafe: the shutter did not close")
+    assert world.lamp.shutter_open  # nobody could close it ...
+    assert not world.lamp.on and world.irradiance() == 0.0  # ... but the lamp is out: no light on the sensor
+    assert not world.azimuth.busy() and not world.zenith.busy()
+    assert session.engine.state is EngineState.IDLE
+    assert len(session.catalogue.completed_keys([run_id])) == 32  # every point was recorded
+
+
+def test_a_run_that_ends_safely_is_not_marked_unsafe(session):
+    world = session.devices.sim.world
+    (run_id,) = run_campaign(SMALL, session)
+    run = session.catalogue.run(run_id)
+    assert (run["status"], run["exit_reason"]) == ("completed", None)
+    assert not [e for e in session.catalogue.events(run_id) if e["kind"] == "unsafe"]
+    assert world.lamp.on and not world.lamp.shutter_open  # standby: the arc keeps burning, the shutter closed
+
+
+def test_an_emergency_stop_latches_until_it_is_acknowledged(session):
+    from bench.engine import EstopLatched
+    world = session.devices.sim.world
+    engine = session.engine
+    fired = threading.Event()
+    engine.subscribe(lambda e: e.kind == "point" and e.data["index"] == 3 and not fired.is_set()
+                     and (fired.set() or engine.emergency_stop()))
+    (run_id,) = run_campaign(SMALL, session)
+    assert session.catalogue.run(run_id)["status"] == "aborted"
+    assert engine.state is EngineState.ESTOP  # the run ended; the latch holds
+    pose = world.stage_true_deg()
+    refused = {"jog": lambda: engine.jog(10.0, 10.0), "lamp on": lambda: engine.set_lamp(True),
+               "shutter open": lambda: engine.set_shutter(True), "campaign": lambda: run_campaign(SMALL, session)}
+    for what, command in refused.items():
+        with pytest.raises(EstopLatched, match="emergency stop latched"):
+            command()
+    assert world.stage_true_deg() == pose and not world.lamp.shutter_open  # nothing moved or opened
+    assert [r["id"] for r in session.catalogue.runs()] == [run_id]  # the refused campaign started no run
+    engine.set_shutter(False)  # what makes the bench safer stays allowed
+    engine.set_lamp(False)
+    for command in (engine.pause, engine.resume, engine.abort):
+        with pytest.raises(IllegalTransition):
+            command()
+    assert engine.state is EngineState.ESTOP
+    assert [e["message"] for e in session.catalogue.events(run_id) if e["kind"] == "estop"] == [
+        "emergency stop, latched until acknowledged: table stopped, shutter closed"]
+
+    engine.acknowledge_estop()
+    assert engine.state is EngineState.IDLE
+    with pytest.raises(IllegalTransition, match="no emergency stop"):
+        engine.acknowledge_estop()
+    engine.jog(10.0, 10.0)
+    assert session.devices.table.position() == pytest.approx((10.0, 10.0), abs=1e-3)
+    (again,) = run_campaign(SMALL.model_copy(update={"name": "after"}), session)
+    assert session.catalogue.run(again)["status"] == "completed"
+
+
+def test_an_emergency_stop_interrupts_a_jog_and_says_where_the_table_stopped(tmp_path):
+    from bench.engine import EstopLatched
+    session = _slow_session(tmp_path, "led")  # real time: a 300° turn takes 30 s at 10°/s
+    world = session.devices.sim.world
+    try:
+        outcome = {}
+
+        def jog():
+            try:
+                session.engine.jog(300.0, 0.0)
+                outcome["answer"] = "arrived"
+            except Exception as exc:  # noqa: BLE001 - what the caller gets is the point
+                outcome["answer"] = exc
+        thread = threading.Thread(target=jog)
+        thread.start()
+        _wait_for(lambda: world.azimuth.busy())
+        time.sleep(0.2)
+        session.engine.emergency_stop()
+        thread.join(timeout=10)
+        error = outcome["answer"]
+        assert isinstance(error, EstopLatched), error
+        azimuth, zenith = session.devices.table.position()
+        assert 0.0 < azimuth < 299.0 and not world.azimuth.busy()
+        assert f"stopped at azimuth {azimuth:.3f}°, zenith {zenith:.3f}°" in str(error)
+        assert "move to azimuth 300°" in str(error) and "emergency stop latched" in str(error)
+        assert session.engine.state is EngineState.ESTOP
+    finally:
+        session.close()
+
+
+def test_a_stalled_axis_faults_soon_after_the_move_should_have_ended(tmp_path):
+    """The timeout comes from the table's own speeds: 1.5 × the expected move + 5 s (it was 600 s for any move)."""
+    from bench.engine import MOVE_TIMEOUT_FACTOR, MOVE_TIMEOUT_MARGIN_S
+    from bench.preflight import timing_from_table
+    catalogue = Catalogue(tmp_path / "stall.sqlite")
+    # 100× real time: the simulated clock runs on while the motor is jammed
+    session = open_session(BenchFile(simulation=SimBenchConfig(time_scale=100.0, seed=5, source="led")), catalogue)
+    world = session.devices.sim.world
+    try:
+        moves = []
+        session.engine.subscribe(lambda e: e.kind == "table" and "timeout_s" in e.data and moves.append(e.data))
+        # the azimuth motor jams after the second point: the controller answers, the move never ends
+        session.engine.subscribe(lambda e: e.kind == "point" and e.data["index"] == 2 and world.azimuth.stall())
+        thread, result = _run_in_thread(session, SMALL)
+        thread.join(timeout=30)
+        assert not thread.is_alive(), "still waiting for the stalled axis"
+        run = catalogue.run(result["runs"][0])
+        stalled = moves[-1]
+        timing = timing_from_table(session.devices.table)  # the speeds the APT controllers report
+        assert timing.rates_deg_s == pytest.approx((10.0, 10.0), rel=1e-3)  # the simulated axes' (bench file)
+        expected = timing.move_s((stalled["azimuth_deg"], stalled["zenith_deg"]),
+                                 (stalled["target_azimuth_deg"], stalled["target_zenith_deg"]))
+        assert expected > 1.0 and stalled["expected_s"] == pytest.approx(expected)
+        assert stalled["timeout_s"] == pytest.approx(MOVE_TIMEOUT_FACTOR * expected + MOVE_TIMEOUT_MARGIN_S)
+        assert stalled["timeout_s"] < 60.0
+        assert run["status"] == "failed" and run["exit_reason"].startswith("DeviceTimeout")
+        assert f"should take {expected:.1f} s (timeout {stalled['timeout_s']:.1f} s" in run["exit_reason"]
+        assert "stalled" in run["exit_reason"]
+        assert not world.azimuth.busy() and not world.lamp.shutter_open  # stopped, and dark
+    finally:
+        session.close()
+        catalogue.close()

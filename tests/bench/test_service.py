@@ -55,6 +55,51 @@ def test_a_submitted_campaign_runs_and_streams_its_progress(service):
     assert service.status()["engine"]["index"] == 32
 
 
+def test_during_a_run_the_status_follows_the_engine(service):
+    """Nothing polls the bench during a run: the engine's own events (moves, lamp, shutter, readings) keep the
+    cached status current, where it used to show the idle bench's shutter and table until the run ended."""
+    _wait_for_status(service)
+    before = service.status()
+    assert not before["source"]["shutter_open"] and not before["source"]["lamp_on"]
+    q = service.bus.subscribe()
+    moves = []
+    service.engine.subscribe(lambda e: e.kind == "table" and e.data["moving"] and moves.append(e.data))
+    reached, release, held = threading.Event(), threading.Event(), {}
+
+    def hold(event):  # after the service's own listener: the point is in the cache
+        if event.kind == "point" and event.data["index"] == 3:
+            held.update(point=event.data)
+            reached.set()
+            release.wait(10)
+    service.engine.subscribe(hold)
+    service.submit(SMALL)
+    try:
+        assert reached.wait(20)
+        time.sleep(0.2)  # several poll periods: the run holds the bench, the poller stays away
+        status, point = service.status(), held["point"]
+    finally:
+        release.set()
+    assert status["engine"]["state"] == "running" and status["engine"]["index"] == 3
+    assert status["source"]["lamp_on"] and status["source"]["warm"] and status["source"]["shutter_open"]
+    assert (status["table"]["azimuth_deg"], status["table"]["zenith_deg"]) == pytest.approx(
+        (point["azimuth_deg"], point["zenith_stage_deg"]), abs=1e-3)
+    assert not status["table"]["moving"] and status["sensor"]["temperature_c"] > 0
+    assert status["updated_utc"] > before["updated_utc"]
+    events = _events_until(q, "campaign-finished")
+    assert moves and all("target_azimuth_deg" in m for m in moves)  # every move, announced as it starts
+    # the event streams get the engine's readings as "status" events, as from the idle poller
+    statuses = [e for e in events if e["kind"] == "status"]
+    assert any(e["source"]["shutter_open"] for e in statuses)
+    assert not service.status()["source"]["shutter_open"]  # closed at the end of the run
+
+
+def _wait_for_status(service, timeout_s=10.0):
+    deadline = time.monotonic() + timeout_s
+    while service.status().get("source") is None:
+        assert time.monotonic() < deadline, "the poller never filled the status"
+        time.sleep(0.01)
+
+
 def test_manual_commands_wait_for_the_run_and_violations_are_listed(service, tmp_path):
     q = service.bus.subscribe()
     service.engine.subscribe(lambda e: e.kind == "point" and e.data["index"] == 2 and service.engine.pause())

@@ -4,7 +4,7 @@ Run: .venv/bin/python tests/perf/bench_plans.py [--sensors N]   (or bash scripts
 
 Both campaigns (examples/seed003.yaml, examples/physical.yaml) run in this process on the simulated bench of
 examples/bench-sim.yaml at time scale 0, on the same sensors: SIM-0001 (the bench file's sensor) and, with
---sensors N, N − 1 fleet sensors with their own build errors (bench.runner.fleet_sensor_truth). Per plan and
+--sensors N, N − 1 fleet sensors with their own build errors (drivers.sim.world.fleet_sensor). Per plan and
 sensor:
 
   bench time   the simulated clock from the start of the run to its end [min], the lamp already warm (a xenon

@@ -27,6 +27,7 @@ class Served:
     base: str
     home: Path
     log: Path
+    proc: subprocess.Popen | None = None  # to kill it as a crash would (SIGKILL)
 
     @property
     def token_file(self) -> Path:
@@ -52,7 +53,7 @@ def serving(home: Path, command: list[str] | None = None, *options: str, timeout
             *options]
     served = Served(f"http://127.0.0.1:{port}", home, home / "serve.log")
     with open(served.log, "w") as log:
-        proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, env=env, cwd=home)
+        proc = served.proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, env=env, cwd=home)
         try:
             deadline = time.monotonic() + timeout_s
             while True:

@@ -4,6 +4,7 @@ import csv
 import io
 import json
 import logging
+import queue
 import signal
 import socket
 import stat
@@ -21,11 +22,14 @@ import uvicorn
 from fastapi.testclient import TestClient
 from uvicorn.logging import AccessFormatter
 
-from bench.campaign import Campaign, Seed003Procedure
+import annotated_types
+
+from bench.campaign import Campaign, PhysicalProcedure, Seed003Procedure
 from bench.runner import bench_data
 from bench.service import EventBus
 from calibration.models import METHODS, calibration_from_dict
 from web.app import create_app
+from web.routes.runs import _physical_records
 from web.server import BenchServer, RedactToken, Shutdown, serve
 from web.security import load_or_create_token
 from web.settings import WebSettings
@@ -35,6 +39,8 @@ from inprocess import AUTH, TOKEN, api_client
 SMALL = Campaign(name="small", frames="none", seed003=Seed003Procedure(
     azimuth_step_deg=90.0, repeats=1, centre_repeats=1, tilt_stage=False))
 SMALL_JSON = SMALL.model_dump(mode="json")
+# the physical plan as the launcher sends it: its own procedure, fitted by every method when the run ends
+PHYSICAL_JSON = {"name": "physical", "plan": "physical", "frames": "none"}
 # zenith 80° is beyond the table's soft limits: preflight names each of its 4 poses
 BEYOND_LIMITS = {**SMALL_JSON, "seed003": {**SMALL_JSON["seed003"], "zenith_stage_deg": [0, 10, 20, 30, 40, 50, 80]}}
 
@@ -43,10 +49,14 @@ COMMANDS = [
     ("POST", "/api/source/lamp", {"on": True}),
     ("POST", "/api/source/shutter", {"open": True}),
     ("POST", "/api/stop", None),
+    ("POST", "/api/stop/acknowledge", None),
     ("POST", "/api/campaigns", SMALL_JSON),
     ("POST", "/api/run/pause", None),
     ("POST", "/api/run/resume", None),
     ("POST", "/api/run/abort", None),
+    ("POST", "/api/run/mount", {"sensor_id": "FM-102"}),
+    ("POST", "/api/runs/1/resume", None),
+    ("POST", "/api/campaigns/1/resume", None),
 ]
 READS = [
     ("GET", "/api/status", None),
@@ -60,6 +70,7 @@ READS = [
     ("GET", "/api/runs/1/points", None),
     ("GET", "/api/runs/1/calibrations", None),
     ("GET", "/api/runs/1/log", None),
+    ("GET", "/api/runs/1/values", None),
     ("GET", "/api/runs/1/fit", None),
     ("GET", "/api/runs/1/data.csv", None),
     ("GET", "/api/calibrations/1/physical.json", None),
@@ -82,12 +93,19 @@ def _engine_state(client):
     return client.get("/api/status", headers=AUTH).json()["engine"]["state"]
 
 
+def _campaign_status(client, campaign_id):
+    campaigns = client.get("/api/campaigns", headers=AUTH).json()["data"]
+    return next(c["status"] for c in campaigns if c["id"] == campaign_id)
+
+
 def _finished_run(client, campaign_id, timeout_s=15.0):
-    """The campaign's run once its queue entry is done or failed: a run is "completed" before its fits are
-    stored, so the run's own status is not the signal that its results are there."""
+    """The campaign's run once the campaign has ended: a run is "completed" before its fits are stored, so
+    the run's own status is not the signal that its results are there."""
     def done():
+        if _campaign_status(client, campaign_id) not in ("completed", "aborted", "failed"):
+            return None
         (entry,) = client.get(f"/api/campaigns/{campaign_id}/fleet", headers=AUTH).json()["data"]
-        return entry if entry["status"] in ("done", "failed") else None
+        return entry
     entry = _wait_for(done, "the campaign to finish", timeout_s)
     return client.get(f"/api/runs/{entry['run_id']}", headers=AUTH).json()
 
@@ -180,6 +198,7 @@ def test_status_frame_and_manual_commands(client):
     stop = client.post("/api/stop", headers=AUTH)
     assert stop.status_code == 200 and "emergency stop" in stop.json()["message"]
     assert not client.post("/api/source/shutter", json={"open": False}, headers=AUTH).json()["source"]["shutter_open"]
+    assert client.post("/api/stop/acknowledge", headers=AUTH).status_code == 200
 
 
 def test_a_jog_outside_the_limits_is_422_and_nothing_moves(client):
@@ -298,9 +317,127 @@ def test_a_campaign_runs_and_its_results_download(client, service):
         header = client.get(f"/api/calibrations/{run_id}/{method}.h", headers=AUTH)
         assert header.status_code == 200 and "sunbench_sun_direction" in header.text
         assert 'attachment; filename="' in header.headers["content-disposition"]
+        # what `sunbench fit` writes too: created time, every method's metrics, provenance; the header names them
+        assert document["created_utc"] and set(document["metrics"]) == set(METHODS)
+        assert document["provenance"]["simulated"] is True
+        assert f"source: run {run_id}" in header.text and "software: " in header.text
+        assert "held-out vector RMS: " in header.text and f"created: {document['created_utc']}" in header.text
+        assert "#define SB_DETECTOR_WIDTH_PX 640" in header.text
+
+
+# -- the physical plan -------------------------------------------------------------------------------------
+def test_a_physical_dry_run_gives_upper_bounds_and_the_warm_up_apart(client):
+    dry = client.post("/api/campaigns/dry-run", json=PHYSICAL_JSON, headers=AUTH)
+    assert dry.status_code == 200, dry.text
+    dry = dry.json()
+    assert dry["upper_bound"] is True and "stops" in dry["upper_bound_reason"] and dry["violations"] == []
+    assert dry["points"] == PhysicalProcedure().max_points  # expanded to its cap: every batch counted
+    assert dry["frames"] >= dry["points"] * PhysicalProcedure().repeats and dry["moves"] > 0
+    assert 0 < dry["warmup_s"] < dry["duration_s"]  # the lamp's warm-up, a part of the duration
+
+    seed003 = client.post("/api/campaigns/dry-run", json=SMALL_JSON, headers=AUTH).json()
+    assert seed003["upper_bound"] is False and seed003["upper_bound_reason"] is None
+    assert seed003["warmup_s"] == pytest.approx(dry["warmup_s"])  # the same lamp, whatever the plan
+
+    # a fleet: the duration counts every sensor, and so does the warm-up included in it
+    fleet = client.post("/api/campaigns/dry-run", json={**PHYSICAL_JSON, "sensors": ["A", "B"]}, headers=AUTH).json()
+    assert fleet["points"] == dry["points"] and fleet["duration_s"] == pytest.approx(2 * dry["duration_s"])
+    assert fleet["warmup_s"] == pytest.approx(2 * dry["warmup_s"])
+
+
+def _beyond(field):
+    """A value just outside each limit of a numeric field of the model, with the limit it breaks."""
+    step = 1 if field.annotation is int else 1e-6
+    for m in field.metadata:
+        if isinstance(m, annotated_types.Ge):
+            yield m.ge - step
+        elif isinstance(m, annotated_types.Gt):
+            yield m.gt
+        elif isinstance(m, annotated_types.Le):
+            yield m.le + step
+        elif isinstance(m, annotated_types.Lt):
+            yield m.lt
+
+
+@pytest.mark.parametrize("name", [n for n, f in PhysicalProcedure.model_fields.items() if f.annotation in (int, float)])
+def test_every_limit_of_the_physical_procedure_is_a_422_naming_its_field(client, name):
+    values = list(_beyond(PhysicalProcedure.model_fields[name]))
+    assert values, f"{name} has no limit"
+    for value in [*values, "many", None]:
+        for url in ("/api/campaigns/dry-run", "/api/campaigns"):
+            response = client.post(url, json={**PHYSICAL_JSON, "physical": {name: value}}, headers=AUTH)
+            assert response.status_code == 422, (name, value, response.text)
+            assert ["body", "physical", name] in [e["loc"] for e in response.json()["detail"]], (name, value)
+    assert client.get("/api/campaigns", headers=AUTH).json()["count"] == 0
+
+
+def test_physical_parameter_targets_are_checked_by_the_model(client):
+    for targets, words in [({"x0_pix": 0.01}, "unknown parameter"), ({"x0_px": 0}, "positive"),
+                           ({"x0_px": -1.0}, "positive")]:
+        response = client.post("/api/campaigns/dry-run", json={**PHYSICAL_JSON, "physical": {"parameter_targets": targets}},
+                               headers=AUTH)
+        assert response.status_code == 422
+        (error,) = response.json()["detail"]
+        assert error["loc"] == ["body", "physical", "parameter_targets"] and words in error["msg"]
+    fine = {"parameter_targets": {"x0_px": 0.02, "gap_mm": 0.001}, "check_rms_target_deg": 0.03}
+    assert client.post("/api/campaigns/dry-run", json={**PHYSICAL_JSON, "physical": fine}, headers=AUTH).status_code == 200
+
+
+def test_a_physical_campaign_runs_stops_at_a_batch_and_shows_its_decisions(client, service):
+    with client.stream("GET", "/api/events", headers=AUTH) as response:
+        campaign_id = _submit(client, PHYSICAL_JSON)
+        seen = _read_events(response.iter_lines(), until=lambda s: any(k == "queued" for k, _ in s))
+    (queued,) = [d for k, d in seen if k == "queued"]
+    assert queued["upper_bound"] is True and queued["points"] == PhysicalProcedure().max_points
+    run = _finished_run(client, campaign_id, timeout_s=60)
+    assert run["status"] == "completed" and run["plan_name"] == "physical"
+    assert run["n_points_planned"] == PhysicalProcedure().max_points  # the cap
+    procedure = PhysicalProcedure()
+    assert procedure.first_batch + procedure.check_directions <= run["n_points_recorded"] <= run["n_points_planned"]
+
+    values = client.get(f"/api/runs/{run['id']}/values", headers=AUTH).json()
+    assert values["run_id"] == run["id"]
+    assert values["values"] == service.catalogue.run_values(run["id"])  # every record, as `sunbench show` reads them
+    physical = values["physical"]
+    batches, stop = physical["batches"], physical["stop"]
+    assert [b["batch"] for b in batches] == list(range(1, len(batches) + 1)) and stop["batches_measured"] == len(batches)
+    assert physical["n_batches"] == procedure.max_batches and physical["check_rms_target_deg"] == procedure.check_rms_target_deg
+    assert physical["n_check_directions"] == procedure.check_directions
+    assert stop["reason"] in ("targets met", "cap reached") and stop["stop"] == (stop["reason"] == "targets met")
+    for b in batches:
+        assert b["n_check_directions"] == procedure.check_directions and set(b["sigmas"]) <= set(b["targets"])
+        assert b["stop"] == (b is batches[-1] and stop["stop"])
+        assert b["stop"] or b["reasons"]
+    recorded = batches[-1]["n_fit_directions"] + procedure.check_directions
+    assert run["n_points_recorded"] == recorded
+
+    # every method is fitted to the scattered directions, and the result plots' route takes each
+    calibrations = client.get(f"/api/runs/{run['id']}/calibrations", headers=AUTH).json()["data"]
+    assert sum(c["chosen"] for c in calibrations) == 1
+    for c in calibrations:
+        fit = client.get(f"/api/runs/{run['id']}/fit", params={"method": c["method"]}, headers=AUTH)
+        assert fit.status_code == 200 and fit.json()["count"] == recorded, c["method"]
+    stages = {p["stage"] for p in client.get(f"/api/runs/{run['id']}/points", headers=AUTH).json()["data"]}
+    assert stages == {"physical", "check"}
+
+
+def test_a_seed003_run_has_no_physical_records(client):
+    run = _finished_run(client, _submit(client))
+    values = client.get(f"/api/runs/{run['id']}/values", headers=AUTH).json()
+    assert values["physical"] is None and values["values"]["exposure_ms"] > 0 and "centre_px" in values["values"]
+
+
+def test_the_physical_batches_come_in_batch_order():
+    decision = {"stop": False, "reasons": ["go on"], "n_fit_directions": 16, "n_check_directions": 8}
+    values = {f"physical_batch_{k}": {**decision, "n_fit_directions": k} for k in (10, 2, 1, 9)}
+    records = _physical_records({**values, "physical_batch_x": {}, "exposure_ms": 4.0})
+    assert [b["batch"] for b in records["batches"]] == [1, 2, 9, 10] == [b["n_fit_directions"] for b in records["batches"]]
+    assert records["stop"] is None and records["n_batches"] is None
+    assert _physical_records({"exposure_ms": 4.0}) is None
 
 
 @pytest.mark.parametrize("url", ["/api/runs/99", "/api/runs/99/points", "/api/runs/99/calibrations", "/api/runs/99/log",
+                                 "/api/runs/99/values",
                                  "/api/runs/99/data.csv", "/api/calibrations/99/physical.json",
                                  "/api/calibrations/99/physical.h", "/api/campaigns/99/fleet"])
 def test_unknown_ids_are_404(client, url):
@@ -511,3 +648,202 @@ def test_the_openapi_schema_lists_every_route(client):
             assert operation["tags"] and operation["summary"], path
     assert schema["components"]["securitySchemes"]["HTTPBearer"]["scheme"] == "bearer"
     assert "CampaignQueued" in schema["components"]["schemas"]
+
+
+# -- the emergency stop latches (issue 10) --------------------------------------------------------------------
+LIGHT_AND_MOTION = [
+    ("POST", "/api/table/jog", {"azimuth_deg": 10.0, "zenith_deg": 10.0}),
+    ("POST", "/api/source/lamp", {"on": True}),
+    ("POST", "/api/source/shutter", {"open": True}),
+    ("POST", "/api/campaigns", SMALL_JSON),
+]
+
+
+def test_an_emergency_stop_latches_until_acknowledged(client, service):
+    assert client.post("/api/source/lamp", json={"on": True}, headers=AUTH).status_code == 200
+    stop = client.post("/api/stop", headers=AUTH)
+    assert stop.status_code == 200 and stop.json()["message"].startswith("emergency stop latched: table stopped, "
+                                                                         "shutter closed")
+    assert _engine_state(client) == "estop"
+    for method, url, body in LIGHT_AND_MOTION:
+        response = client.request(method, url, json=body, headers=AUTH)
+        assert response.status_code == 409, (url, response.text)
+        assert "emergency stop latched" in response.json()["detail"] and "acknowledge" in response.json()["detail"]
+    assert not service.catalogue.campaigns()  # nothing was queued
+    # what makes the bench safer is still allowed
+    assert not client.post("/api/source/shutter", json={"open": False}, headers=AUTH).json()["source"]["shutter_open"]
+    assert client.post("/api/source/lamp", json={"on": False}, headers=AUTH).status_code == 200
+    assert client.post("/api/run/abort", headers=AUTH).status_code == 409
+
+    ack = client.post("/api/stop/acknowledge", headers=AUTH)
+    assert ack.status_code == 200 and "acknowledged" in ack.json()["message"]
+    assert _engine_state(client) == "idle"
+    again = client.post("/api/stop/acknowledge", headers=AUTH)
+    assert again.status_code == 409 and "no emergency stop" in again.json()["detail"]
+    status = client.post("/api/table/jog", json={"azimuth_deg": 10.0, "zenith_deg": 10.0}, headers=AUTH).json()
+    assert status["table"]["azimuth_deg"] == pytest.approx(10.0, abs=1e-3)
+
+
+def test_an_emergency_stop_during_a_jog_answers_409_with_where_the_table_stopped(tmp_path):
+    from bench.benchfile import BenchFile
+    from bench.catalogue import Catalogue
+    from bench.service import BenchService
+    catalogue = Catalogue(tmp_path / "slow.sqlite")
+    service = BenchService(BenchFile(), catalogue, time_scale=1.0, status_period_s=0.05).start()  # real time
+    world = service.session.devices.sim.world
+    try:
+        with api_client(service) as client:
+            answers = []
+            jog = threading.Thread(target=lambda: answers.append(client.post(
+                "/api/table/jog", json={"azimuth_deg": 300.0, "zenith_deg": 0.0}, headers=AUTH)))
+            jog.start()  # 30 s at 10°/s
+            _wait_for(world.azimuth.busy, "the table to turn")
+            time.sleep(0.3)
+            assert client.post("/api/stop", headers=AUTH).status_code == 200
+            jog.join(timeout=10)
+            (answer,) = answers
+            azimuth, zenith = service.session.devices.table.position()
+            assert answer.status_code == 409, answer.text  # not 200 "table at azimuth 300°"
+            assert 0.0 < azimuth < 299.0 and not world.azimuth.busy()
+            detail = answer.json()["detail"]
+            assert f"stopped at azimuth {azimuth:.3f}°, zenith {zenith:.3f}°" in detail
+            assert "emergency stop latched" in detail
+            status = _wait_for(lambda: (s := client.get("/api/status", headers=AUTH).json())["table"]["azimuth_deg"]
+                               == pytest.approx(azimuth, abs=1e-6) and s, "the status to show the stopped table")
+            assert status["engine"]["state"] == "estop" and not status["table"]["moving"]
+            assert client.post("/api/table/jog", json={"azimuth_deg": 0.0, "zenith_deg": 0.0},
+                               headers=AUTH).status_code == 409  # the next move does not run
+            assert service.session.devices.table.position() == (azimuth, zenith)
+    finally:
+        service.close()
+        catalogue.close()
+
+
+# -- a fleet's sensor mounts, resuming runs and campaigns (issue 10) ---------------------------------------------
+FLEET_JSON = {**SMALL_JSON, "name": "fleet", "sensors": ["SIM-0001", "FM-102"]}
+
+
+def _awaited_mount(client):
+    return _wait_for(lambda: client.get("/api/status", headers=AUTH).json()["mount"], "the bench to ask for a mount")
+
+
+def _campaign_ended(client, campaign_id, timeout_s=30.0):
+    return _wait_for(lambda: (s := _campaign_status(client, campaign_id)) in ("completed", "aborted", "failed") and s,
+                     f"campaign {campaign_id} to end", timeout_s)
+
+
+def test_a_fleet_waits_for_the_operator_to_confirm_each_next_sensor(client, service):
+    campaign_id = _submit(client, FLEET_JSON)
+    mount = _awaited_mount(client)
+    assert mount == {"campaign_id": campaign_id, "sensor_id": "FM-102", "position": 1, "count": 2,
+                     "resumes_run": None, "prompt": f"mount sensor FM-102 on the bench (sensor 2 of 2 of campaign "
+                                                    f"{campaign_id})"}
+    time.sleep(0.3)
+    (first,) = service.catalogue.runs(campaign_id)  # nothing starts without the operator
+    assert first["status"] == "completed" and _campaign_status(client, campaign_id) == "running"
+    # the bench is the operator's meanwhile (a fixture may need the table turned)
+    assert client.post("/api/table/jog", json={"azimuth_deg": 10.0, "zenith_deg": 5.0}, headers=AUTH).status_code == 200
+    wrong = client.post("/api/run/mount", json={"sensor_id": "SIM-0001"}, headers=AUTH)
+    assert wrong.status_code == 409 and "awaits sensor FM-102, not SIM-0001" in wrong.json()["detail"]
+
+    confirmed = client.post("/api/run/mount", json={"sensor_id": "FM-102"}, headers=AUTH)
+    assert confirmed.status_code == 200 and confirmed.json()["message"] == "sensor FM-102 confirmed mounted"
+    assert _campaign_ended(client, campaign_id) == "completed"
+    runs = service.catalogue.runs(campaign_id)
+    assert [(r["sensor_id"], r["status"], r["n_points_recorded"]) for r in runs] == \
+        [("SIM-0001", "completed", 32), ("FM-102", "completed", 32)]
+    assert runs[1]["provenance"]["devices"]["sensor"] == "SB-CMOS-PINHOLE, serial FM-102, firmware 1.0.0"
+    assert client.get("/api/status", headers=AUTH).json()["mount"] is None
+    late = client.post("/api/run/mount", json={"sensor_id": "FM-102"}, headers=AUTH)
+    assert late.status_code == 409 and late.json()["detail"] == "no sensor mount is awaited"
+
+
+def test_a_wrong_sensor_fails_its_run_unmeasured_and_the_campaign_resumes_once_it_is_fixed(client, service):
+    events = service.bus.subscribe()
+    campaign_id = _submit(client, FLEET_JSON)
+    _awaited_mount(client)
+    service.session.devices.sim.mount_sensor("SIM-0001")  # the operator put the first sensor back on
+    assert client.post("/api/run/mount", json={"sensor_id": "FM-102"}, headers=AUTH).status_code == 200
+    assert _campaign_ended(client, campaign_id) == "failed"
+    failed = service.catalogue.runs(campaign_id)[-1]
+    assert (failed["sensor_id"], failed["status"], failed["n_points_recorded"]) == ("FM-102", "failed", 0)
+    assert "reports serial SIM-0001, not FM-102" in failed["exit_reason"]
+    finished = _drain(events, "campaign-finished")
+    assert finished["status"] == "failed" and "SIM-0001" in finished["reason"] and "FM-102" in finished["reason"]
+
+    resumed = client.post(f"/api/campaigns/{campaign_id}/resume", headers=AUTH)
+    assert resumed.status_code == 202 and resumed.json()["message"] == f"campaign {campaign_id} queued to resume"
+    mount = _awaited_mount(client)  # the failed sensor is asked for again, to resume its run
+    assert (mount["sensor_id"], mount["resumes_run"]) == ("FM-102", failed["id"])
+    assert client.post("/api/run/mount", json={"sensor_id": "FM-102"}, headers=AUTH).status_code == 200
+    assert _campaign_ended(client, campaign_id) == "completed"
+    last = service.catalogue.runs(campaign_id)[-1]
+    assert (last["parent_run_id"], last["status"], last["n_points_recorded"]) == (failed["id"], "completed", 32)
+    again = client.post(f"/api/campaigns/{campaign_id}/resume", headers=AUTH)
+    assert again.status_code == 409 and "complete" in again.json()["detail"]
+
+
+def _drain(events, kind, timeout_s=10.0):
+    """The next event of `kind` from a bus queue."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            event = events.get(timeout=0.5)
+        except queue.Empty:
+            continue
+        if event["kind"] == kind:
+            return event
+    raise AssertionError(f"no {kind} event")
+
+
+def test_abort_while_a_mount_is_awaited_stops_the_campaign_there(client, service):
+    campaign_id = _submit(client, FLEET_JSON)
+    _awaited_mount(client)
+    assert client.post("/api/run/abort", headers=AUTH).status_code == 200
+    assert _campaign_ended(client, campaign_id) == "aborted"
+    fleet = client.get(f"/api/campaigns/{campaign_id}/fleet", headers=AUTH).json()["data"]
+    assert [(e["sensor_id"], e["status"]) for e in fleet] == [("SIM-0001", "done"), ("FM-102", "queued")]
+    assert len(service.catalogue.runs(campaign_id)) == 1  # nothing measured the sensor nobody mounted
+
+
+def test_a_stopped_run_resumes_from_the_api_measuring_only_what_it_missed(client, service):
+    reached, release = _gate_points(service, {3})
+    campaign_id = _submit(client)
+    assert reached.wait(10)
+    assert client.post("/api/run/abort", headers=AUTH).status_code == 200
+    release.set()
+    aborted = _finished_run(client, campaign_id)
+    assert aborted["status"] == "aborted" and _campaign_status(client, campaign_id) == "aborted"
+
+    response = client.post(f"/api/runs/{aborted['id']}/resume", headers=AUTH)
+    assert response.status_code == 202 and response.json()["message"] == f"run {aborted['id']} queued to resume"
+    assert _campaign_ended(client, campaign_id) == "completed"
+    child = service.catalogue.runs(campaign_id)[-1]
+    assert (child["parent_run_id"], child["status"]) == (aborted["id"], "completed")
+    assert child["n_points_recorded"] == 32 - aborted["n_points_recorded"]  # only the missing points
+    again = client.post(f"/api/runs/{aborted['id']}/resume", headers=AUTH)
+    assert again.status_code == 409 and f"already resumed by run {child['id']}" in again.json()["detail"]
+    complete = client.post(f"/api/runs/{child['id']}/resume", headers=AUTH)
+    assert complete.status_code == 409 and "complete" in complete.json()["detail"]
+    assert client.post("/api/runs/99/resume", headers=AUTH).status_code == 404
+
+
+def test_a_run_that_ended_unsafe_says_so_in_the_status_and_the_run(client, service):
+    shutter, pulled = service.session.devices.sim.devices["shutter"], threading.Event()
+
+    def pull_the_cable(event):  # after the first run's last point
+        if event.kind == "point" and event.data["index"] == event.data["total"] and not pulled.is_set():
+            pulled.set()
+            shutter.faults.disconnected = True
+    service.engine.subscribe(pull_the_cable)
+    run = _finished_run(client, _submit(client))
+    unsafe = client.get("/api/status", headers=AUTH).json()["engine"]["ended_unsafe"]
+    assert unsafe.startswith("ended unsafe: the shutter did not close") and "lamp was switched off" in unsafe
+    assert run["exit_reason"].endswith(unsafe)
+    log = client.get(f"/api/runs/{run['id']}/log", headers=AUTH).json()["data"]
+    assert [e["message"] for e in log if e["kind"] == "unsafe"] == [unsafe]
+    assert not service.session.devices.sim.world.lamp.on
+    shutter.faults.clear()  # the cable plugged back in
+    again = _finished_run(client, _submit(client))  # strikes the lamp again
+    assert (again["status"], again["exit_reason"]) == ("completed", None)
+    assert client.get("/api/status", headers=AUTH).json()["engine"]["ended_unsafe"] is None

@@ -11,6 +11,7 @@ import json
 import os
 import re
 import time
+import urllib.error
 import urllib.request
 from pathlib import Path
 
@@ -142,6 +143,12 @@ def test_a_campaign_from_the_launcher_to_its_results(page, server):
     points = int(page.locator("#d-points").inner_text())
     assert points == 80  # seed 003: 8 azimuths × 7 zenith stages + centre and tilt points
     assert re.fullmatch(r"\d+ min \d+ s", page.locator("#d-duration").inner_text())
+    # the lamp's warm-up apart, for every plan; seed 003's figures are what the run will do, not bounds
+    assert re.fullmatch(r"\d+ min \d+ s", page.locator("#d-warmup").inner_text())
+    expect(page.locator("#d-summary")).to_have_text(re.compile(
+        r"^80 points, \d+ frames, \d+ moves per sensor × 1 sensor\(s\); about [\d.]+ min on the bench "
+        r"\(of which [\d.]+ min lamp warm-up\)$"))
+    expect(page.locator("#d-bound")).to_have_text("")
     page.shots("dry-run")
 
     page.click("#start")
@@ -150,6 +157,8 @@ def test_a_campaign_from_the_launcher_to_its_results(page, server):
     page.click("#started a[href='/run']")
     expect(page).to_have_url(re.compile(r"/run$"))
     expect(page.locator("#stream-state")).to_have_text("connected")
+    expect(page.locator("#run-title")).to_contain_text("plan seed003")
+    expect(page.locator("#bound-note")).to_be_hidden()  # seed 003's total is what it will measure
 
     # progress while it runs: the bar moves and spots arrive on the matrix before the end
     seen_between = False
@@ -206,6 +215,80 @@ def test_a_campaign_from_the_launcher_to_its_results(page, server):
     expect(page.locator("#fleet tbody tr")).to_have_count(1)
     expect(page.locator("#fleet tbody tr td").nth(5)).to_have_text("physical")
     page.shots("fleet")
+
+
+# -- the physical plan: launcher → live run → results -------------------------------------------------------
+def test_a_physical_campaign_from_the_launcher_to_its_results(page, server):
+    _, token = server
+    page.goto("/launch")
+    paste_token(page, token)
+    page.select_option("#campaign-form select[name=plan]", "physical")
+    physical = page.locator("fieldset[data-plan=physical]")
+    expect(physical).to_be_visible()
+    expect(page.locator("fieldset[data-plan=seed003]")).to_be_hidden()
+    expect(physical.locator("input[name=first_batch]")).to_have_value("16")
+    page.shots("physical-form")
+
+    # a field beyond the model's limit: refused, the field named and marked
+    physical.locator("input[name=first_batch]").fill("5")
+    page.click("#dry-run")
+    expect(page.locator("#message")).to_have_text("invalid campaign: physical.first_batch: Input should be greater "
+                                                  "than or equal to 10")
+    expect(physical.locator("input[name=first_batch]")).to_have_class(re.compile(r"\binvalid\b"))
+    physical.locator("input[name=first_batch]").fill("16")
+    physical.locator("summary", has_text="in its own unit").click()
+    physical.locator("input[name='parameter_targets.x0_px']").fill("0.05")
+
+    page.click("#dry-run")
+    expect(page.locator("#message")).to_have_text("dry run ok: nothing moved")
+    expect(physical.locator("input[name=first_batch]")).not_to_have_class(re.compile(r"\binvalid\b"))
+    expect(page.locator("#d-points")).to_have_text(re.compile(r"^at most \d+$"))
+    cap = int(page.locator("#d-points").inner_text().removeprefix("at most "))
+    assert cap == 16 + 2 * 8 + 8  # the procedure's defaults: every batch and the check directions
+    expect(page.locator("#d-duration")).to_have_text(re.compile(r"^at most \d+ min \d+ s$"))
+    expect(page.locator("#d-summary")).to_have_text(re.compile(
+        rf"^at most {cap} points, at most \d+ frames, at most \d+ moves per sensor × 1 sensor\(s\); "
+        r"at most [\d.]+ min on the bench \(of which [\d.]+ min lamp warm-up\)$"))
+    expect(page.locator("#d-bound")).to_contain_text("Upper bounds, every point counted")
+    page.shots("physical-dry-run")
+
+    page.click("#start")
+    expect(page.locator("#started")).to_contain_text("queued")
+    page.click("#started a[href='/run']")
+    expect(page.locator("#stream-state")).to_have_text("connected")
+    expect(page.locator("#result-link a")).to_be_visible(timeout=TIMEOUT_MS)
+    expect(page.locator("#log")).to_contain_text("finished: completed")
+    expect(page.locator("#run-title")).to_contain_text("plan physical")
+    # its total is its cap: an upper bound, and a run that stopped before it is complete all the same
+    expect(page.locator("#progress-text")).to_have_text(re.compile(rf"^\d+ / at most {cap}$"))
+    expect(page.locator("#bound-note")).to_be_visible()
+    recorded = int(page.locator("#progress-text").inner_text().split(" / ")[0])
+    assert 16 + 8 <= recorded <= cap
+    assert page.eval_on_selector("#progress", "p => p.value / p.max") == 1.0
+    expect(page.locator("#log")).to_contain_text("batch 1/3")  # the stopping rule's verdict after each batch
+    page.shots("physical-finished")
+
+    page.click("#result-link a")
+    expect(page).to_have_url(re.compile(r"/results\?run=\d+$"))
+    expect(page.locator("#run-info")).to_contain_text(f"physical, completed, {recorded} / at most {cap} points")
+    expect(page.locator("#metrics tbody tr.chosen")).to_have_count(1)
+    # the stopping rule's records: one row per batch measured, the final decision, 1σ against the targets
+    expect(page.locator("#stopping-section")).to_be_visible()
+    batches = page.locator("#batches tbody tr")
+    expect(batches.first).to_be_visible()
+    expect(page.locator("#stopping-verdict")).to_contain_text(f"Stopped after batch {batches.count()} of 3")
+    expect(page.locator("#sigmas tbody tr")).to_have_count(9)
+    expect(page.locator("#sigmas tbody tr", has_text="x0_px").locator("td").nth(1)).to_have_text("0.0500")
+    # the directions are scattered: fig. 4.7's line per azimuth gives way to points against zenith
+    expect(page.locator("#zenith-residual-heading")).to_contain_text("against zenith")
+    for plot in ("spot-plot", "radius-plot", "zenith-residual-plot", "azimuth-plot", "error-plot"):
+        expect(page.locator(f"#{plot} .main-svg").first).to_be_visible()
+        assert plot_points(page, plot) >= 10, plot
+    assert page.locator("#zenith-residual-plot .scatterlayer .trace").count() == 1
+    page.shots("physical-results")
+
+    page.goto("/results")
+    expect(page.locator("#runs-table tbody tr", has_text="physical").first).to_contain_text(f"{recorded} / at most {cap}")
 
 
 # -- a calibration's quality and uncertainty ----------------------------------------------------------------
@@ -325,6 +408,56 @@ def test_the_bench_page_lights_the_lamp_opens_the_shutter_and_jogs(page, server)
     jog_to(page, 0, 0)
 
 
+def test_the_bench_page_follows_a_run_and_its_emergency_stop_latches(page, server):
+    """During a run the bench page shows what the engine does (the lamp lit, the shutter open, "updated" moving
+    on), its manual buttons disabled; after EMERGENCY STOP the latch shows, moves and lights stay disabled until
+    "Acknowledge e-stop"."""
+    _, token = server
+    page.goto("/")
+    paste_token(page, token)
+    expect(page.locator("#s-engine")).to_have_text(re.compile(r"^idle"))
+    manual = ("#lamp-on", "#shutter-open", "#jog-form button[type=submit]", "[data-jog='az:1']")
+    try:
+        _api(server, "/api/campaigns", {"name": "e-stop", "frames": "none"})  # seed 003: ~10 s at 100×
+        expect(page.locator("#s-engine")).to_have_text(re.compile(r"^running"))
+        expect(page.locator("#s-shutter")).to_have_text("open")  # the engine opened it (it used to stay "closed")
+        expect(page.locator("#s-lamp")).to_contain_text("on")
+        updated, azimuth = page.locator("#s-updated").inner_text(), page.locator("#s-az").inner_text()
+        page.wait_for_function("([u, a]) => document.querySelector('#s-updated').textContent !== u "
+                               "&& document.querySelector('#s-az').textContent !== a", arg=[updated, azimuth])
+        for button in (*manual, "#lamp-off", "#shutter-close"):
+            expect(page.locator(button)).to_be_disabled()  # a run owns the bench
+        expect(page.locator("#stop")).to_be_enabled()
+        expect(page.locator("#estop-box")).to_be_hidden()
+        expect(page.locator("#estop-ack")).to_be_disabled()
+        page.shots("running")
+
+        page.click("#stop")
+        expect(page.locator("#message")).to_contain_text("emergency stop latched: table stopped, shutter closed")
+        expect(page.locator("#estop-box")).to_be_visible()
+        expect(page.locator("#s-engine")).to_have_text(re.compile(r"^estop"))
+        expect(page.locator("#s-shutter")).to_have_text("closed")
+        expect(page.locator("#estop-ack")).to_be_enabled()
+        for button in manual:
+            expect(page.locator(button)).to_be_disabled()
+        for button in ("#lamp-off", "#shutter-close"):  # they make the bench safer
+            expect(page.locator(button)).to_be_enabled()
+        page.shots("latched")
+
+        page.click("#estop-ack")
+        expect(page.locator("#message")).to_have_text("emergency stop acknowledged: the bench may move and light again")
+        expect(page.locator("#estop-box")).to_be_hidden()
+        expect(page.locator("#s-engine")).to_have_text(re.compile(r"^idle"))
+        for button in manual:
+            expect(page.locator(button)).to_be_enabled()
+        jog_to(page, 0, 0)  # the bench moves again
+    finally:  # the next tests need a bench that is not latched
+        try:
+            _api(server, "/api/stop/acknowledge", {})
+        except urllib.error.HTTPError:
+            pass  # nothing latched
+
+
 # -- refusals -----------------------------------------------------------------------------------------------
 def test_without_the_token_the_launcher_asks_for_it_and_refuses_bad_campaigns(page, server):
     _, token = server
@@ -409,3 +542,71 @@ def test_with_public_read_the_pages_show_without_the_token_and_commands_still_as
             shots("launch-refused")
         finally:
             context.close()
+
+
+# -- a fleet's next sensor, and a stopped run resumed (issue 10) ------------------------------------------------
+def _campaign_status(server, campaign_id):
+    return next(c["status"] for c in _api(server, "/api/campaigns")["data"] if c["id"] == campaign_id)
+
+
+def test_the_live_run_page_asks_for_each_next_sensor_of_a_fleet_and_confirms_it(page, server):
+    _, token = server
+    page.goto("/run")
+    paste_token(page, token)
+    expect(page.locator("#stream-state")).to_have_text("connected")
+    campaign_id = _api(server, "/api/campaigns", {**SMALL, "name": "fleet", "sensors": ["SIM-0001", "FM-102"]})[
+        "campaign_id"]
+    prompt = page.locator("#mount-prompt")
+    expect(prompt).to_be_visible(timeout=TIMEOUT_MS)  # once the first sensor is measured
+    text = f"Mount sensor FM-102 on the bench (sensor 2 of 2 of campaign {campaign_id})"
+    expect(page.locator("#mount-text")).to_have_text(text)
+    expect(page.locator("#engine-state")).to_have_text("idle")  # the bench waits for the operator
+    page.shots("mount-prompt")
+    page.reload()  # a page opened meanwhile asks too: the status says what the bench waits for
+    expect(page.locator("#mount-text")).to_have_text(text)
+    assert _campaign_status(server, campaign_id) == "running"
+
+    page.click("#mount-confirm")
+    expect(page.locator("#message")).to_have_text("sensor FM-102 confirmed mounted")
+    expect(prompt).to_be_hidden()
+    expect(page.locator("#run-title")).to_contain_text("sensor FM-102")
+    expect(page.locator("#log")).to_contain_text(f"campaign-finished: campaign {campaign_id}: completed")
+    page.shots("fleet-done")
+    page.goto(f"/fleet?campaign={campaign_id}")
+    expect(page.locator("#fleet-heading")).to_contain_text("2 / 2 sensors done")
+    expect(page.locator("#campaign-stopped")).to_be_hidden()
+
+
+def test_a_stopped_run_resumes_from_the_live_run_page(page, server):
+    _, token = server
+    # 64 points: long enough at 100× to be stopped midway
+    longer = {**SMALL, "name": "to-resume", "seed003": {**SMALL["seed003"], "azimuth_step_deg": 45.0}}
+    campaign_id = _api(server, "/api/campaigns", longer)["campaign_id"]
+    deadline = time.monotonic() + TIMEOUT_MS / 1000
+    while not any(r["campaign_id"] == campaign_id and r["n_points_recorded"] >= 3
+                  for r in _api(server, "/api/runs")["data"]):
+        assert time.monotonic() < deadline, "the run recorded no points"
+        time.sleep(0.02)
+    _api(server, "/api/run/abort", {})
+    _wait_idle(server)
+    (run,) = [r for r in _api(server, "/api/runs")["data"] if r["campaign_id"] == campaign_id]
+    assert run["status"] == "aborted" and _campaign_status(server, campaign_id) == "aborted"
+
+    page.goto(f"/fleet?campaign={campaign_id}")
+    paste_token(page, token)
+    expect(page.locator("#campaign-stopped")).to_be_visible()  # the fleet page offers the campaign's rest too
+    expect(page.locator("#campaign-stopped-text")).to_contain_text("This campaign aborted; 1 sensor(s) not done.")
+    page.goto("/run")
+    box = page.locator("#resume-box")
+    expect(box).to_be_visible()
+    expect(page.locator("#resume-text")).to_contain_text(f"Run {run['id']} (sensor SIM-0001) aborted: aborted by "
+                                                         "the operator")
+    page.shots("resume-offered")
+    page.click("#resume-run")
+    expect(page.locator("#message")).to_have_text(f"run {run['id']} queued to resume")
+    expect(page.locator("#log")).to_contain_text(f"campaign-finished: campaign {campaign_id}: completed")
+    page.shots("resumed")
+    runs = [r for r in _api(server, "/api/runs")["data"] if r["campaign_id"] == campaign_id]
+    assert [(r["parent_run_id"], r["status"]) for r in runs] == [(None, "aborted"), (run["id"], "completed")]
+    assert runs[1]["n_points_recorded"] == 64 - runs[0]["n_points_recorded"]  # only what the first missed
+    expect(box).to_be_hidden()  # nothing left to resume

@@ -3,12 +3,17 @@ the read-only fit route the result plots draw, and the event stream's ?token= fo
 
 import re
 import time
+import typing
+from html.parser import HTMLParser
 
 import numpy as np
 import pytest
 
-from bench.campaign import Campaign, Seed003Procedure
+import annotated_types
+
+from bench.campaign import Campaign, PhysicalProcedure, Seed003Procedure
 from calibration.models import METHODS
+from calibration.models.physical import FITTED
 from web.routes.pages import PAGES, STATIC_DIR
 
 from inprocess import AUTH, TOKEN, api_client
@@ -170,3 +175,88 @@ def test_the_fit_route_refusals(client):
     run_id = _finished_run(client)
     response = client.get(f"/api/runs/{run_id}/fit", params={"method": "nonsense"}, headers=AUTH)
     assert response.status_code == 404 and "no nonsense calibration" in response.json()["detail"]
+
+
+# -- the launcher's form is the campaign model's ------------------------------------------------------------
+class _Form(HTMLParser):
+    """The launcher's plan options, and its inputs by the plan of the fieldset around them (None outside)."""
+
+    def __init__(self):
+        super().__init__()
+        self.plan, self.options, self.inputs, self.selects = None, [], {}, set()
+        self._select = None
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        if tag == "fieldset":
+            self.plan = attrs["data-plan"]
+            self.inputs.setdefault(self.plan, {})
+        elif tag == "select":
+            self._select = attrs["name"]
+            self.selects.add(attrs["name"])
+        elif tag == "option" and self._select == "plan":
+            self.options.append(attrs["value"])
+        elif tag == "input" and "name" in attrs:
+            inputs = self.inputs.setdefault(self.plan, {})
+            assert attrs["name"] not in inputs, f"{attrs['name']} twice in fieldset {self.plan}"
+            inputs[attrs["name"]] = attrs
+
+    def handle_endtag(self, tag):
+        if tag == "fieldset":
+            self.plan = None
+        elif tag == "select":
+            self._select = None
+
+
+def _launch_form(client) -> _Form:
+    form = _Form()
+    form.feed(client.get("/launch").text)
+    return form
+
+
+def _limits(field) -> tuple[float | None, float | None]:
+    """(lower, upper) bounds of a model field, inclusive or not: an input's min and max."""
+    low = high = None
+    for m in field.metadata:
+        if isinstance(m, (annotated_types.Ge, annotated_types.Gt)):
+            low = getattr(m, "ge", None) if isinstance(m, annotated_types.Ge) else m.gt
+        if isinstance(m, (annotated_types.Le, annotated_types.Lt)):
+            high = getattr(m, "le", None) if isinstance(m, annotated_types.Le) else m.lt
+    return low, high
+
+
+def test_the_launcher_offers_the_seed003_and_physical_plans(client):
+    form = _launch_form(client)
+    assert form.options == ["seed003", "physical"]
+    assert set(form.options) <= set(typing.get_args(Campaign.model_fields["plan"].annotation))
+    assert set(form.inputs) == {None, "seed003", "physical"}  # one fieldset per plan, named as Campaign's field
+    assert {"name", "operator", "sensors"} <= set(form.inputs[None]) and {"plan", "frames"} <= form.selects
+
+
+@pytest.mark.parametrize("plan, model", [("seed003", Seed003Procedure), ("physical", PhysicalProcedure)])
+def test_every_field_of_the_launcher_has_the_models_default_and_limits(client, plan, model):
+    inputs = _launch_form(client).inputs[plan]
+    targets = {name.split(".", 1)[1] for name in inputs if name.startswith("parameter_targets.")}
+    if plan == "physical":  # one optional 1σ target per fitted parameter, blank by default
+        assert targets == set(FITTED)
+        assert all("value" not in inputs[f"parameter_targets.{t}"] and "required" not in inputs[f"parameter_targets.{t}"]
+                   and inputs[f"parameter_targets.{t}"]["min"] == "0" for t in targets)
+    fields = {name for name in inputs if "." not in name}
+    assert fields <= set(model.model_fields), fields - set(model.model_fields)
+    wanted = {"seed003": {"azimuth_step_deg", "zenith_stage_deg", "repeats", "centre_repeats", "tilt_stage"},
+              "physical": {"first_batch", "batch_size", "max_batches", "check_directions", "repeats",
+                           "check_rms_target_deg", "parameter_budget_deg", "zenith_max_deg", "zenith_step_deg",
+                           "azimuth_step_deg", "edge_margin_px"}}[plan]
+    assert fields == wanted
+    for name in fields:
+        attrs, field = inputs[name], model.model_fields[name]
+        if attrs.get("type") == "checkbox":
+            assert ("checked" in attrs) == field.default, name
+        elif "data-list" in attrs:
+            assert [float(v) for v in attrs["value"].split(",")] == list(field.default), name
+        else:
+            assert attrs["type"] == "number" and "required" in attrs, name
+            assert float(attrs["value"]) == field.default, name
+            low, high = _limits(field)
+            assert (float(attrs["min"]), float(attrs["max"])) == (low, high), name
+            assert attrs["step"] == ("1" if field.annotation is int else "any"), name

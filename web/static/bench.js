@@ -20,11 +20,25 @@ async function refreshStatus() {
   $("#s-shutter").textContent = source ? (source.shutter_open ? "open" : "closed") : "–";
   $("#s-sensor").textContent = sensor ? `${fmt(sensor.temperature_c, 1)} °C, exposure ${fmt(sensor.exposure_ms, 2)} ms` : "–";
   $("#s-updated").textContent = (status.error ? `ERROR ${status.error} · ` : "") + (status.updated_utc ?? "–");
+  followState(engine);
   const form = $("#jog-form");
   if (table && document.activeElement?.form !== form) {
     form.azimuth_deg.value = fmt(table.azimuth_deg, 3);
     form.zenith_deg.value = fmt(table.zenith_deg, 3);
   }
+}
+
+// the buttons follow the engine: moves and lights only while no run owns the bench and no e-stop is latched;
+// closing the shutter and standby (they make the bench safer) also while latched; the e-stop always
+function followState(engine) {
+  const latched = engine.state === "estop", free = engine.state === "idle";
+  $("#estop-box").hidden = !latched;
+  $("#estop-ack").disabled = !latched;
+  for (const b of document.querySelectorAll("#lamp-on, #shutter-open, #jog-form button, [data-jog]")) b.disabled = !free;
+  for (const b of document.querySelectorAll("#lamp-off, #shutter-close")) b.disabled = !(free || latched);
+  const unsafe = engine.ended_unsafe;
+  $("#unsafe-box").hidden = !unsafe;
+  $("#unsafe-box").textContent = unsafe ? `Run ${engine.run_id} ${unsafe}: see to the bench before the next run.` : "";
 }
 
 async function command(path, body, done) {
@@ -83,6 +97,10 @@ function init() {
   $("#shutter-close").onclick = () => command("/api/source/shutter", { open: false }, "shutter closed");
   $("#stop").onclick = async () => {
     try { say((await api("/api/stop", { method: "POST" })).message, true); } catch (err) { report(err); }
+    refreshStatus();
+  };
+  $("#estop-ack").onclick = async () => {
+    try { say((await api("/api/stop/acknowledge", { method: "POST" })).message); } catch (err) { report(err); }
     refreshStatus();
   };
   $("#jog-form").addEventListener("submit", (e) => {

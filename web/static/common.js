@@ -96,6 +96,11 @@ export function initTokenForm(onChange) {
   if (!getToken()) showTokenForm(true);
 }
 
+// plans with a stopping rule (bench/plans.py physical_plan): a run's planned points are its cap, so its point
+// total, progress and ETA are upper bounds (preflight says so of a campaign: the dry run's upper_bound)
+const STOPPING_PLANS = new Set(["physical"]);
+export const stopsEarly = (planName) => STOPPING_PLANS.has(planName);
+
 export const query = (name) => new URLSearchParams(location.search).get(name);
 
 // the common plotly layout: title on top, legend under the plot (clear of the x-axis title)

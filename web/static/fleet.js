@@ -1,5 +1,5 @@
 // Fleet of a campaign: one row per sensor with its run and chosen calibration.
-import { $, api, el, fmt, initTokenForm, query, report } from "./common.js";
+import { $, api, el, fmt, initTokenForm, query, report, say } from "./common.js";
 
 const campaignParam = query("campaign");
 
@@ -17,6 +17,14 @@ async function showFleet(id) {
   const fleet = await api(`/api/campaigns/${id}/fleet`);
   const done = fleet.data.filter((f) => f.status === "done").length;
   $("#fleet-heading").textContent = `Campaign ${id}: ${done} / ${fleet.count} sensors done`;
+  const campaign = (await api("/api/campaigns")).data.find((c) => c.id === id);
+  const stopped = campaign && (campaign.status === "aborted" || campaign.status === "failed");
+  $("#campaign-stopped").hidden = !stopped;
+  if (stopped) {
+    $("#campaign-stopped-text").textContent = `This campaign ${campaign.status}; `
+      + `${fleet.count - done} sensor(s) not done. `
+      + "Resuming goes on with them, each from its last run's points, asking for every sensor to mount. ";
+  }
   $("#fleet tbody").replaceChildren(...fleet.data.map((f) => {
     const held = f.metrics?.heldout || {};
     return el("tr", {},
@@ -37,6 +45,14 @@ async function init() {
   }
 }
 
+async function resumeCampaign() {
+  try {
+    say((await api(`/api/campaigns/${Number(campaignParam)}/resume`, { method: "POST" })).message);
+    $("#campaign-stopped").hidden = true;
+  } catch (err) { report(err); }
+}
+
+$("#resume-campaign").onclick = resumeCampaign;
 initTokenForm(init);
 init();
 if (campaignParam) setInterval(() => { if ($("#fleet-live").checked && !document.hidden) init(); }, 5000);

@@ -1,11 +1,17 @@
 // Results of a run: the metrics of every method (table 4.1) and seed 003's figures 4.4 and 4.6–4.9, and of the
-// calibration shown its quality (warnings, rejected frames) and its 1σ pointing uncertainty over the field.
+// calibration shown its quality (warnings, rejected frames) and its 1σ pointing uncertainty over the field; of a
+// physical-plan run, its stopping rule's decision after each batch (GET /api/runs/{id}/values).
 // The radius and the fitted directions come from GET /api/runs/{id}/fit (computed by the calibration code); the
 // quality and the uncertainty map from the calibration documents, as GET /api/runs/{id}/calibrations serves them.
 /* global Plotly */
-import { $, api, download, el, fmt, initTokenForm, matrixLayout, PLOT_CONFIG, plotLayout, query, report, say } from "./common.js";
+import { $, api, download, el, fmt, initTokenForm, matrixLayout, PLOT_CONFIG, plotLayout, query, report, say, stopsEarly }
+  from "./common.js";
 
 const runParam = query("run");
+
+// "24 / 40 points", or "24 / at most 40" for a plan whose planned points are its cap
+const pointsText = (run) => `${run.n_points_recorded} / ${stopsEarly(run.plan_name) ? "at most " : ""}${run.n_points_planned ?? "–"}`;
+const sig = (v) => (v === null || v === undefined || Number.isNaN(v) ? "–" : Number(v).toPrecision(3));
 
 // Table 4.1: held-out figures (points not used in the fit) decide; the fitted RMS is shown for comparison
 const COLUMNS = [
@@ -26,8 +32,8 @@ async function listRuns() {
   $("#runs-table tbody").replaceChildren(...runs.map((r) => el("tr", {},
     el("td", {}, el("a", { href: `/results?run=${r.id}` }, `run ${r.id}`)), el("td", {}, r.sensor_id),
     el("td", {}, r.campaign_id ? el("a", { href: `/fleet?campaign=${r.campaign_id}` }, String(r.campaign_id)) : "–"),
-    el("td", {}, r.status), el("td", {}, `${r.n_points_recorded} / ${r.n_points_planned ?? "–"}`), el("td", {}, r.ended_utc ?? "–"))));
-  if (!runs.length) $("#runs-table tbody").append(el("tr", {}, el("td", { colspan: 6 }, "no run recorded yet")));
+    el("td", {}, r.plan_name), el("td", {}, r.status), el("td", {}, pointsText(r)), el("td", {}, r.ended_utc ?? "–"))));
+  if (!runs.length) $("#runs-table tbody").append(el("tr", {}, el("td", { colspan: 7 }, "no run recorded yet")));
 }
 
 function metricsTable(calibrations) {
@@ -82,14 +88,30 @@ function byAzimuth(data) {
     .map(([key, points]) => [key, points.sort((a, b) => a.zenith_deg - b.zenith_deg)]);
 }
 
-// fig. 4.7: zenith residuals, one line per azimuth (a tilted detector shows mirror-symmetric pairs)
+// fig. 4.7: zenith residuals, one line per azimuth (a tilted detector shows mirror-symmetric pairs). That needs
+// the bench's grid (every azimuth at several zeniths, as seed 003's 8 × 7); directions scattered over the field
+// (the physical plan's) are drawn as points against zenith, coloured by their azimuth
+const LINE_MIN_POINTS = 3;  // off-axis points an azimuth needs for its own line
+
 function zenithResidualPlot(fit) {
-  const traces = byAzimuth(fit.data.filter((p) => p.zenith_deg > 0.5)).map(([azimuth, points]) => ({
+  const off = fit.data.filter((p) => p.zenith_deg > 0.5);
+  const groups = byAzimuth(off);
+  const grid = groups.length > 0 && groups.every(([, points]) => points.length >= LINE_MIN_POINTS);
+  $("#zenith-residual-heading").textContent = grid ? "Zenith residuals by azimuth (fig. 4.7)"
+    : "Zenith residuals against zenith (no azimuth grid for fig. 4.7's lines)";
+  const traces = grid ? groups.map(([azimuth, points]) => ({
     type: "scatter", mode: "lines+markers", name: `φ ${azimuth}°`, x: points.map((p) => p.zenith_deg),
     y: points.map((p) => p.zenith_residual_deg), marker: { size: 5 },
-  }));
-  Plotly.react("zenith-residual-plot", traces, plotLayout(`zenith residuals of ${fit.method} by azimuth (fig. 4.7)`,
-    "true zenith θ [°]", "θ fitted − θ true [°]"), PLOT_CONFIG);
+  })) : [{
+    type: "scatter", mode: "markers", name: "zenith residual", x: off.map((p) => p.zenith_deg),
+    y: off.map((p) => p.zenith_residual_deg), text: off.map((p) => `azimuth ${fmt(p.azimuth_deg, 1)}°, ${p.stage}`),
+    marker: { size: 7, color: off.map((p) => p.azimuth_deg), colorscale: CYCLIC, cmin: 0, cmax: 360,
+      colorbar: { title: { text: "azimuth [°]" } } },
+    hovertemplate: "θ %{x:.1f}°: %{y:.4f}°<br>%{text}<extra></extra>",
+  }];
+  Plotly.react("zenith-residual-plot", traces, plotLayout(grid ? `zenith residuals of ${fit.method} by azimuth (fig. 4.7)`
+    : `zenith residuals of ${fit.method} at ${off.length} directions`, "true zenith θ [°]", "θ fitted − θ true [°]",
+  grid ? {} : { showlegend: false }), PLOT_CONFIG);
 }
 
 // fig. 4.8: the azimuth set on the bench against the spot's azimuth φ_meas (eq. 10), with the calibration's
@@ -145,6 +167,34 @@ function errorPlot(fit) {
 }
 
 const FIT_PLOTS = [radiusPlot, zenithResidualPlot, azimuthPlot, errorPlot];
+
+// the physical plan's stopping rule as the run recorded it (physical_batch_<k>, physical_stop): after each batch
+// the check directions' RMS and every parameter's 1σ against their targets, and the final decision
+function stoppingSection(physical) {
+  $("#stopping-section").hidden = !physical;
+  if (!physical) return;
+  const { batches, stop } = physical;
+  const cap = physical.n_batches ?? "–";
+  $("#stopping-verdict").textContent = stop
+    ? `Stopped after batch ${stop.batches_measured} of ${cap}: ${stop.reason}`
+      + `${stop.reasons.length ? ` (${stop.reasons.join("; ")})` : ""}. Check RMS target ${fmt(physical.check_rms_target_deg, 4)}°; `
+      + `the cap: ${physical.n_fit_directions ?? "–"} fit and ${physical.n_check_directions ?? "–"} check directions.`
+    : `No final decision recorded: the plan did not reach its end (${batches.length} of ${cap} batches decided).`;
+  $("#batches tbody").replaceChildren(...batches.map((b) => el("tr", { class: b.stop ? "chosen" : "" },
+    el("td", {}, String(b.batch)), el("td", {}, String(b.n_fit_directions)), el("td", {}, String(b.n_check_directions)),
+    el("td", {}, fmt(b.check_rms_deg, 4)), el("td", {}, fmt(b.check_max_deg, 4)),
+    el("td", {}, b.stop ? "stop: every target met" : `go on: ${b.reasons.join("; ")}`))));
+  const names = [...new Set(batches.flatMap((b) => [...Object.keys(b.targets), ...Object.keys(b.sigmas)]))];
+  const targets = Object.assign({}, ...batches.map((b) => b.targets));
+  $("#sigmas thead").replaceChildren(el("tr", {}, el("th", {}, "parameter [its unit]"), el("th", {}, "target 1σ"),
+    ...batches.map((b) => el("th", {}, `1σ after batch ${b.batch}`))));
+  $("#sigmas tbody").replaceChildren(...names.map((name) => el("tr", {}, el("td", {}, name), el("td", {}, sig(targets[name])),
+    ...batches.map((b) => {
+      const sigma = b.sigmas[name];
+      const over = sigma !== null && sigma !== undefined && b.targets[name] !== undefined && !(sigma <= b.targets[name]);
+      return el("td", over ? { class: "over", title: "above its target" } : {}, sig(sigma));
+    }))));
+}
 
 // the fit's quality in words (its warnings first), its figures and the frames it left out; documents written
 // before these were recorded have none of it (null), and then the section stays hidden
@@ -241,14 +291,16 @@ async function showMethod(runId, points, method, sensor, calibrations) {
 
 async function showRun(runId) {
   $("#run-summary").hidden = false;
-  const [run, points, calibrations] = await Promise.all([
-    api(`/api/runs/${runId}`), api(`/api/runs/${runId}/points`), api(`/api/runs/${runId}/calibrations`)]);
+  const [run, points, calibrations, values] = await Promise.all([
+    api(`/api/runs/${runId}`), api(`/api/runs/${runId}/points`), api(`/api/runs/${runId}/calibrations`),
+    api(`/api/runs/${runId}/values`)]);
   // the detector's size for the spot map's axes: the bench's sensor now, if it answers (else the axes fit the
   // points); a run recorded with another sensor than today's still has its points drawn where they were
   const status = await api("/api/status").catch(() => null);
   $("#run-heading").textContent = `Run ${run.id} · sensor ${run.sensor_id}`;
   $("#run-info").textContent = `${run.plan_name}, ${run.status}${run.exit_reason ? ` (${run.exit_reason})` : ""}, `
-    + `${run.n_points_recorded} / ${run.n_points_planned ?? "–"} points, ${run.started_utc ?? "–"} → ${run.ended_utc ?? "–"}`;
+    + `${pointsText(run)} points, ${run.started_utc ?? "–"} → ${run.ended_utc ?? "–"}`;
+  stoppingSection(values.physical);
   const usable = calibrations.data.filter((c) => !c.metrics?.error);
   const chosen = usable.find((c) => c.chosen) || usable[0];
   const select = $("#method");
