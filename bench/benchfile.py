@@ -36,7 +36,7 @@ from typing import Annotated, Any, Literal, Union
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from calibration.design import DEFAULT_BENCH, BenchGeometry
+from calibration.design import DEFAULT_BENCH, DEFAULT_SENSOR, BenchGeometry, SensorDesign
 from drivers.sim.bench import SimBenchConfig
 from drivers.sim.lamp import LED
 from drivers.sources import ARC_WARMUP_S, LED_WARMUP_S
@@ -259,6 +259,18 @@ def _positive_range(value: tuple[float, float]) -> tuple[float, float]:
     return value
 
 
+class SensorDesignConfig(_Strict):
+    """The detector's design (calibration.design.SensorDesign): its pitch sets the fitted gap and glass."""
+
+    width_px: int = Field(DEFAULT_SENSOR.width_px, ge=8, le=100_000)
+    height_px: int = Field(DEFAULT_SENSOR.height_px, ge=8, le=100_000)
+    pixel_pitch_mm: float = Field(DEFAULT_SENSOR.pixel_pitch_mm, gt=0, le=1.0)
+    pinhole_height_mm: float = Field(DEFAULT_SENSOR.pinhole_height_mm, gt=0, le=100.0)
+
+    def sensor_design(self) -> SensorDesign:
+        return SensorDesign(**{**DEFAULT_SENSOR.to_dict(), **self.model_dump()})
+
+
 class CmosSensorConfig(_Strict):
     """The CMOS pinhole sun-sensor module (framed binary protocol, RS-485)."""
 
@@ -267,6 +279,7 @@ class CmosSensorConfig(_Strict):
     exposure_range_ms: Annotated[Range, AfterValidator(_positive_range)] = (0.01, 1000.0)
     timeout_s: float = Field(1.0, gt=0)
     frame_timeout_s: float = Field(5.0, gt=0)  # must cover the longest exposure plus the transfer
+    design: SensorDesignConfig | None = None  # the detector's design, for the fits (default: seed 003's)
 
 
 class CameraSensorConfig(_Strict):

@@ -345,13 +345,14 @@ def fit_inputs(session: Session):
     alt-az mount the directions the engine recorded are used as they are (geometry None).
     """
     sim = session.devices.sim
-    design = sim.world.sensor.design if sim is not None else DEFAULT_SENSOR
+    given = getattr(session.bench_file.devices.sensor, "design", None)  # the bench file's word wins
+    design = given.sensor_design() if given is not None else (sim.world.sensor.design if sim is not None
+                                                               else DEFAULT_SENSOR)
     if sim is not None and sim.world.axis_order != "azimuth-on-zenith":
         return design, None
     g = session.bench_file.geometry
-    return design, GeometryPrior(lever_arm_mm=g.lever_arm_mm or None, lever_arm_sd_mm=getattr(g, "lever_arm_sd_mm", None),
-                                 source_distance_mm=g.source_distance_mm,
-                                 source_distance_sd_mm=getattr(g, "source_distance_sd_mm", None))
+    return design, GeometryPrior(lever_arm_mm=g.lever_arm_mm or None, lever_arm_sd_mm=g.lever_arm_sd_mm,
+                                 source_distance_mm=g.source_distance_mm, source_distance_sd_mm=g.source_distance_sd_mm)
 
 
 def check_resumable(catalogue, run_id: int) -> dict:
