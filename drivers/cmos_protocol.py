@@ -86,6 +86,10 @@ class FrameError(ValueError):
         self.consumed = consumed
 
 
+class CrcMismatch(FrameError):
+    """A whole frame whose CRC-32 does not match: it arrived, corrupted (line noise)."""
+
+
 def decode_frame(buffer) -> tuple[Frame | None, int]:
     """Take one frame from the start of `buffer`.
 
@@ -99,8 +103,8 @@ def decode_frame(buffer) -> tuple[Frame | None, int]:
     Raises
     ------
     FrameError
-        Garbage before a sync, a length over MAX_PAYLOAD or a CRC mismatch; `consumed` says how many bytes
-        to drop to resynchronise.
+        Garbage before a sync, a length over MAX_PAYLOAD or a CRC mismatch (:class:`CrcMismatch`);
+        `consumed` says how many bytes to drop to resynchronise.
     """
     start = bytes(buffer[:2])
     if len(buffer) >= 2 and start != SYNC:
@@ -117,7 +121,7 @@ def decode_frame(buffer) -> tuple[Frame | None, int]:
     body = bytes(buffer[2: HEADER.size + length])
     (crc,) = CRC.unpack_from(buffer, HEADER.size + length)
     if zlib.crc32(body) != crc:
-        raise FrameError("CRC mismatch", total)
+        raise CrcMismatch("CRC mismatch", total)
     return Frame(code, sequence, body[6:]), total
 
 

@@ -13,16 +13,19 @@ Protocol decisions (anchors-protocols §2):
   (errno 25, ENOTTY) that a pseudo-terminal raises (§2.1, §6 item 4).
 * The host is 0x01, the stage 0x50 (a stand-alone USB unit); rack 0x11 and bay 0x21 also exist (§2.2).
 * Replies are taken by message id only: the driver never insists on the reply's source byte, because some
-  controllers send 0 there (§2.2). It does check that the frame is addressed to the host and that its id
-  and length are those of a device-to-host message it knows, so a corrupted header is never read as data.
+  controllers send 0 there (§2.2). It does check that the frame is addressed to the host, that its id and
+  length are those of a device-to-host message it knows and that its channel field is the driver's, and it
+  never decodes across a message boundary (:class:`AptFrameReader`): a frame cut short on the line is
+  dropped, not completed with the next frame's header, and bytes before a valid header are skipped.
 * The device volunteers MOVE_COMPLETED, MOVE_STOPPED, MOVE_HOMED and status updates (§2.3). Any of them
   that arrive while the driver waits for a reply are consumed and noted, never taken for the reply.
   MOVE_COMPLETED / MOVE_STOPPED are accepted in both the short and the long (14-byte status) form, since
   which one the K10CR1 sends is UNCONFIRMED (§7 item 5).
 * Completion is decided by the status bits (moving / jogging / homing clear), polled with
   MOT_REQ_STATUSBITS, as QMI does for the K10CR1 (§2.3); volunteered messages are only hints.
-* A reply that stops half way (a truncated or corrupted frame) raises :class:`ProtocolError`; idempotent
-  requests are then repeated once from a clean input buffer. Silence raises :class:`DeviceTimeout`.
+* A reply that stops half way or is corrupted raises :class:`ProtocolError`, silence
+  :class:`DeviceTimeout`; either way the request (a REQ_x, safe to repeat) is asked again from a clean input
+  buffer, up to `retries` times (3). Commands without a reply are sent once.
 """
 
 from __future__ import annotations
@@ -37,7 +40,7 @@ from enum import IntEnum
 
 from .errors import DeviceDisconnected, DeviceFault, DeviceTimeout, LimitError, ProtocolError
 from .interfaces import AxisMotion, Limits, RotaryAxis
-from .transport import Port, open_port
+from .transport import DEFAULT_RETRIES, Port, ask_again, open_port
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
@@ -444,6 +447,201 @@ def parse_richresponse(data: bytes) -> tuple[int, int, str]:
     return msg_ident, code, notes.split(b"\0", 1)[0].decode("ascii", "replace")
 
 
+# -- reading a stream of frames ---------------------------------------------------------------------------------
+#: Addresses a controller answers from (§2.2): stand-alone unit, rack, bays 1–10, and 0 (some send it).
+CONTROLLER_ADDRESSES = frozenset({0x00, RACK, USB_UNIT, *range(BAY0, BAY0 + 10)})
+#: Device messages that name no channel; the short forms of the others carry it in param1, the long forms
+#: in the first two bytes of the data packet (anchors-protocols §2.3).
+_NO_CHANNEL_FIELD = frozenset({Msg.HW_GET_INFO, Msg.HW_RESPONSE, Msg.HW_RICHRESPONSE})
+
+
+def frame_error(header: bytes, *, strict: bool = False) -> str | None:
+    """Why 6 bytes cannot start a device-to-host frame the driver knows, or None if they can.
+
+    The id must be known and the data length one that message has (a long-form flag with no data is not);
+    the frame must be addressed to the host (0 is tolerated, like thorlabs-apt-device does). `strict` also
+    asks for the host address exactly and a controller's source address: for bytes hunted through after a
+    broken frame, or inside a data packet, where the lenient check would let chance patterns through.
+    """
+    msg_id = header[0] | header[1] << 8
+    allowed = DEVICE_MESSAGES.get(msg_id)
+    if allowed is None:
+        return f"unknown message id 0x{msg_id:04X}"
+    dest = header[4] & ~LONG_FLAG
+    if dest not in (0x00, HOST) or (strict and dest != HOST):
+        return f"frame 0x{msg_id:04X} addressed to 0x{dest:02X}, not to the host"
+    length = header_length(header)
+    if length not in allowed or (header[4] & LONG_FLAG and not length):
+        return f"frame 0x{msg_id:04X} with {length} data bytes"
+    if strict and header[5] not in CONTROLLER_ADDRESSES:
+        return f"frame 0x{msg_id:04X} from 0x{header[5]:02X}, not from a controller"
+    return None
+
+
+class AptFrameReader:
+    """Cuts the bytes a controller sends into frames, resynchronising on message headers.
+
+    APT has no start byte and no checksum (§2.2): a frame ends where its header says, so a frame that lost
+    bytes on the way swallows the start of the next one, and that header decoded as data is nonsense — a
+    status word read from ``64 04 0E 00 81 50`` (a long MOVE_COMPLETED) says "reverse limit switch". So a
+    frame is never decoded across a message boundary:
+
+    * its header must be one the driver knows (:func:`frame_error`); otherwise one byte is dropped and the
+      next tried (yaq's ``Unpacker``), with the strict check until a frame is found again (a HW_RESPONSE
+      found that way must also have a header after it);
+    * it must carry the driver's channel (param1 of a short frame, the first data bytes of a long one);
+    * a strictly valid header (with the right channel) that starts inside the data packet, and whose own
+      frame is followed by a header, means the frame was cut short there: its bytes are dropped and reading
+      goes on at that header. "Followed" is taken on trust (part of a header, or nothing yet) only when the
+      outer frame is itself in doubt (wrong channel, or junk after it) and more bytes may come; a frame that
+      checks out keeps data that merely looks like a header (position 0x0444 then encoder 1 reads
+      ``44 04 00 00 01 00``), and a HW_RESPONSE (no channel to check) needs a header after it. Of several
+      such headers the last wins: a header-like pattern just before the real cut is always "followed";
+    * what follows a frame must be a header, the start of one, or nothing yet: bytes that start no frame
+      mean its end is no message boundary (a cut frame filled up with noise or another frame's middle);
+    * a frame still incomplete when nothing more will come (the deadline) is dropped whole.
+
+    A frame is judged by the bytes that have arrived when it completes (the driver reads whatever waits
+    behind it first); a frame cut short whose window is filled, exactly, by the start of a frame whose rest
+    has not arrived yet cannot be told from a whole one.
+
+    Parameters
+    ----------
+    channel : int
+        Channel ident the data packets must carry.
+
+    Attributes
+    ----------
+    buffer : bytearray
+        Bytes received and not yet taken.
+    problems : list of (str, bytearray)
+        What was dropped and why, oldest first; one entry per resynchronisation (the driver clears it).
+    """
+
+    def __init__(self, channel: int = 1):
+        self.channel = channel
+        self.buffer = bytearray()
+        self.problems: list[tuple[str, bytearray]] = []
+        self.hunting = False  # out of step after dropped bytes: headers are checked strictly
+
+    def feed(self, data: bytes) -> None:
+        self.buffer += data
+
+    @property
+    def need(self) -> int:
+        """Bytes still missing from the frame at the front of the buffer (at least 1)."""
+        if len(self.buffer) < HEADER_SIZE:
+            return HEADER_SIZE - len(self.buffer)
+        return max(HEADER_SIZE + header_length(self.buffer) - len(self.buffer), 1)  # 1: a look past the frame
+
+    def next(self, *, final: bool = False) -> AptMessage | None:
+        """The next whole frame, or None until more bytes arrive; `final`: none will (drop a cut-short front)."""
+        buf = self.buffer
+        while True:
+            if len(buf) < HEADER_SIZE:
+                if final and buf:
+                    self._drop(len(buf), "truncated APT frame header", new=not self.hunting)
+                return None
+            why = frame_error(buf[:HEADER_SIZE], strict=self.hunting)
+            if why:
+                self._drop(1, why, new=not self.hunting)
+                continue
+            length = header_length(buf)
+            size = HEADER_SIZE + length
+            if self.hunting and size == HEADER_SIZE and self._channel(0, size) is None:
+                # a HW_RESPONSE found in junk is only 4 bytes of evidence, and it raises a fault: believe it
+                # only with a header after it
+                if len(buf) < 2 * HEADER_SIZE and not final:
+                    return None
+                if not self._followed(HEADER_SIZE, partial_ok=False, end_ok=False):
+                    self._drop(1, "HW_RESPONSE-like bytes in junk", new=False)
+                    continue
+            if len(buf) < size and not final:
+                return None  # wait for the rest of the data packet
+            name = _msg_name(buf)
+            cut = self._cut(size, final)
+            if cut is not None:
+                self._drop(cut, f"truncated {name} frame: {cut - HEADER_SIZE} of {length} data bytes, then "
+                                f"another frame", new=True)
+                continue
+            if len(buf) < size:
+                self._drop(len(buf), f"truncated {name} frame: {len(buf) - HEADER_SIZE} of {length} data bytes",
+                           new=True)
+                return None
+            channel = self._channel(0, size)
+            if channel is not None and channel != self.channel:
+                self._drop(1, f"{name} frame for channel {channel}, expected {self.channel}", new=True)
+                continue
+            if not self._followed(size):  # its end is no message boundary: it may hold another frame's bytes
+                self._drop(1, f"{name} frame followed by bytes that start no frame", new=True)
+                continue
+            frame = bytes(buf[:size])
+            del buf[:size]
+            self.hunting = False
+            return unpack_message(frame)
+
+    def _drop(self, count: int, why: str, *, new: bool) -> None:
+        dropped = self.buffer[:count]
+        del self.buffer[:count]
+        if new or not self.problems:
+            self.problems.append((why, bytearray(dropped)))
+        else:  # still hunting for a header: the same resynchronisation
+            self.problems[-1][1].extend(dropped)
+        self.hunting = True
+
+    def _channel(self, start: int, end: int) -> int | None:
+        """Channel named by the frame at `start` (ending at `end`); None if it names none or it has not arrived."""
+        buf = self.buffer
+        msg_id = buf[start] | buf[start + 1] << 8
+        if msg_id in _NO_CHANNEL_FIELD:
+            return None
+        if end - start == HEADER_SIZE:
+            return buf[start + 2]  # short form: param1
+        if len(buf) < start + HEADER_SIZE + 2:
+            return None
+        return buf[start + HEADER_SIZE] | buf[start + HEADER_SIZE + 1] << 8
+
+    def _followed(self, at: int, *, partial_ok: bool = True, end_ok: bool = True) -> bool:
+        """Whether a frame can start at offset `at`: a valid header there, or nothing there yet (`end_ok`),
+        or the start of one (`partial_ok`: a known id, or too few bytes to tell)."""
+        rest = bytes(self.buffer[at:at + HEADER_SIZE])
+        if len(rest) == HEADER_SIZE:
+            end = at + HEADER_SIZE + header_length(rest)
+            return frame_error(rest) is None and self._channel(at, end) in (None, self.channel)
+        if not rest:
+            return end_ok
+        return partial_ok and (len(rest) < 2 or (rest[0] | rest[1] << 8) in DEVICE_MESSAGES)
+
+    def _cut(self, size: int, final: bool) -> int | None:
+        """Offset inside the frame at the front where another frame really starts, or None (see the class)."""
+        buf = self.buffer
+        whole = len(buf) >= size and self._channel(0, size) in (None, self.channel) and self._followed(size)
+        found = None
+        for at in range(HEADER_SIZE, min(size, len(buf) - HEADER_SIZE + 1)):
+            header = bytes(buf[at:at + HEADER_SIZE])
+            if frame_error(header, strict=True):
+                continue
+            end = at + HEADER_SIZE + header_length(header)
+            channel = self._channel(at, end)
+            if channel not in (None, self.channel):
+                continue
+            # a short frame naming no channel (HW_RESPONSE: 4 bytes of evidence, and it raises a fault) is
+            # believed only with a header after it
+            weak = end - at == HEADER_SIZE and channel is None
+            if self._followed(end, partial_ok=not (whole or final or weak),
+                              end_ok=not weak and (end >= size if whole else True)):
+                found = at
+        return found
+
+
+def _msg_name(header) -> str:
+    msg_id = header[0] | header[1] << 8
+    try:
+        return Msg(msg_id).name
+    except ValueError:
+        return f"0x{msg_id:04X}"
+
+
 # -- the driver -----------------------------------------------------------------------------------------------
 class AptRotationStage(RotaryAxis):
     """A Thorlabs K10CR1-class rotation stage on the APT protocol (anchors-protocols §2).
@@ -469,14 +667,21 @@ class AptRotationStage(RotaryAxis):
     max_velocity_deg_s, max_accel_deg_s2 : float
         Largest velocity [°/s] and acceleration [°/s²] :meth:`set_velocity_params` accepts (K10CR1: 10, 20).
     retries : int
-        How many times an idempotent request is repeated after a corrupted or truncated reply.
+        How many times a request is asked again after a garbled, cut or missing reply (default 3,
+        :data:`~drivers.transport.DEFAULT_RETRIES`). Only requests (REQ_x) are repeated; commands that have
+        no reply are sent once.
+
+    Attributes
+    ----------
+    retry_count : int
+        Requests asked again so far: how noisy the link is.
     """
 
     def __init__(self, port: Port, *, name: str | None = None, limits: Limits = Limits(-360.0, 360.0),
                  channel: int = 1, dest: int = USB_UNIT, counts_per_deg: float = K10CR1_COUNTS_PER_DEG,
                  velocity_scale: float = K10CR1_VELOCITY_SCALE, accel_scale: float = K10CR1_ACCEL_SCALE,
                  max_velocity_deg_s: float = K10CR1_MAX_VELOCITY_DEG_S,
-                 max_accel_deg_s2: float = K10CR1_MAX_ACCEL_DEG_S2, retries: int = 1):
+                 max_accel_deg_s2: float = K10CR1_MAX_ACCEL_DEG_S2, retries: int = DEFAULT_RETRIES):
         self.port = port
         self.name = name or port.name
         self.limits = limits
@@ -488,6 +693,8 @@ class AptRotationStage(RotaryAxis):
         self.max_velocity_deg_s = max_velocity_deg_s
         self.max_accel_deg_s2 = max_accel_deg_s2
         self.retries = retries
+        self.retry_count = 0  # requests asked again since the driver was made (link quality)
+        self._reader = AptFrameReader(channel)
         self.last_status: AptStatus | None = None  # latest status seen, asked for or volunteered
         self.events: list[str] = []  # volunteered completion messages seen (MOT_MOVE_COMPLETED …), oldest first
         self._homed_seen = False
@@ -556,36 +763,27 @@ class AptRotationStage(RotaryAxis):
         self.port.discard_input()
 
     # -- exchanges --------------------------------------------------------------------------------------
-    def _read(self, size: int, deadline: float, before: bytes) -> bytes:
-        try:
-            return self.port.read_exact(size, timeout_s=max(deadline - time.monotonic(), 1e-3))
-        except DeviceTimeout as exc:
-            got = before + exc.received
-            if got:  # part of a frame arrived and the rest never will: a broken frame, not silence
-                raise ProtocolError(self.name, f"truncated APT frame ({size} more bytes expected)",
-                                    received=got) from None
-            raise
-
-    def _frame_error(self, header: bytes) -> str | None:
-        """Why a 6-byte header cannot start a device-to-host frame, or None if it can."""
-        msg_id = header[0] | header[1] << 8
-        allowed = DEVICE_MESSAGES.get(msg_id)
-        if allowed is None:
-            return f"unknown message id 0x{msg_id:04X}"
-        if header[4] & ~LONG_FLAG not in (0x00, HOST):  # 0 tolerated like thorlabs-apt-device does
-            return f"frame 0x{msg_id:04X} addressed to 0x{header[4] & ~LONG_FLAG:02X}, not to the host"
-        if header_length(header) not in allowed:
-            return f"frame 0x{msg_id:04X} with {header_length(header)} data bytes"
-        return None
-
     def _read_frame(self, deadline: float) -> AptMessage:
-        header = self._read(HEADER_SIZE, deadline, b"")
-        why = self._frame_error(header)
-        if why:
-            raise ProtocolError(self.name, why, received=header)
-        length = header_length(header)
-        data = self._read(length, deadline, header) if length else b""
-        return unpack_message(header + data)
+        """The next frame from the controller (see :class:`AptFrameReader`); DeviceTimeout at `deadline`."""
+        reader = self._reader
+        while True:
+            message = reader.next()
+            if message is not None:
+                return message
+            left = deadline - time.monotonic()
+            if left > 0:  # checked here too: a stream of volunteered bytes must not hold the deadline off
+                try:
+                    data = self.port.read_exact(reader.need, timeout_s=left)
+                except DeviceTimeout as exc:
+                    reader.feed(exc.received)
+                else:
+                    # what has already arrived behind the frame shows where the next one starts
+                    reader.feed(data + self.port.read_available())
+                    continue
+            message = reader.next(final=True)  # a frame cut short at the front is dropped here
+            if message is not None:
+                return message
+            raise DeviceTimeout(self.name, "no APT reply within the timeout")
 
     def _note(self, message: AptMessage) -> None:
         """Handle a message the device volunteered (or a late reply): remember it, never take it as a reply."""
@@ -608,17 +806,17 @@ class AptRotationStage(RotaryAxis):
 
     def _drain(self) -> None:
         """Take in whatever waits before a new exchange: note complete frames, drop the rest."""
-        stale = self.port.discard_input()
-        while len(stale) >= HEADER_SIZE:
-            header = stale[:HEADER_SIZE]
-            size = HEADER_SIZE + header_length(header)
-            if self._frame_error(header) or len(stale) < size:
-                log.debug("%s: dropped %d stale bytes %s", self.name, len(stale), stale.hex(" "))
-                return
-            self._note(unpack_message(stale[:size]))
-            stale = stale[size:]
-        if stale:
-            log.debug("%s: dropped %d stale bytes %s", self.name, len(stale), stale.hex(" "))
+        reader = self._reader
+        reader.feed(self.port.read_available())
+        while (message := reader.next()) is not None:
+            self._note(message)
+        if reader.buffer:  # the start of a frame: its rest, if it ever comes, is hunted through
+            reader.problems.append(("stale bytes", bytearray(reader.buffer)))
+            reader.buffer.clear()
+            reader.hunting = True
+        for why, dropped in reader.problems:
+            log.debug("%s: dropped %d stale bytes %s (%s)", self.name, len(dropped), dropped.hex(" "), why)
+        reader.problems.clear()
 
     def _raise_fault(self) -> None:
         fault, self._fault = self._fault, None
@@ -626,7 +824,7 @@ class AptRotationStage(RotaryAxis):
             raise fault
 
     def _send(self, frame: bytes, *, check_faults: bool = True) -> None:
-        """Send a command that has no reply."""
+        """Send a command that has no reply: sent once, never retried (there is no reply to judge it by)."""
         with self.port.transaction():
             self._drain()
             if check_faults:
@@ -634,31 +832,44 @@ class AptRotationStage(RotaryAxis):
             self.port.write(frame)
 
     def _query(self, request: bytes, reply_id: int) -> AptMessage:
-        """Send `request`, return the first frame with id `reply_id`; volunteered frames are noted on the way."""
-        for attempt in range(self.retries + 1):
-            try:
-                with self.port.transaction():
-                    self._drain()
-                    self.port.write(request)
-                    deadline = time.monotonic() + self.port.timeout_s
-                    while True:
-                        try:
-                            message = self._read_frame(deadline)
-                        except DeviceTimeout:
-                            if self._fault is not None:  # the device answered with an error instead
-                                self._raise_fault()
-                            raise
-                        if message.msg_id == reply_id:
-                            break
-                        self._note(message)
-            except ProtocolError as exc:
-                if attempt == self.retries:
-                    raise
-                log.warning("%s: %s; asking again", self.name, exc)
-                continue
+        """Send `request`, return the first frame with id `reply_id`; volunteered frames are noted on the way.
+
+        Every request sent here is a REQ_x, safe to repeat, so a garbled, cut or missing reply is asked again
+        (:attr:`retries` times, :func:`~drivers.transport.ask_again`). APT has no sequence number: a late
+        reply that arrives after the request was repeated is taken for the reply; it answers the same
+        question, at most one timeout earlier.
+        """
+        def attempt() -> AptMessage:
+            with self.port.transaction():
+                self._drain()
+                self.port.write(request)
+                deadline = time.monotonic() + self.port.timeout_s
+                while True:
+                    try:
+                        message = self._read_frame(deadline)
+                    except DeviceTimeout:
+                        if self._fault is not None:  # the device answered with an error instead
+                            self._raise_fault()
+                        problems = self._reader.problems
+                        if problems:  # the reply came, broken: say how (the first problem is the cause)
+                            why, dropped = problems[0]
+                            more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
+                            problems.clear()
+                            raise ProtocolError(self.name, why + more, received=bytes(dropped)) from None
+                        raise
+                    if message.msg_id == reply_id:
+                        break
+                    self._note(message)
+                for why, dropped in self._reader.problems:  # resynchronised, the reply is good
+                    log.warning("%s: dropped %d bytes (%s)", self.name, len(dropped), why)
+                self._reader.problems.clear()
             self._raise_fault()
             return message
-        raise AssertionError("unreachable")  # pragma: no cover
+
+        return ask_again(self.name, attempt, self.retries, on_retry=self._count_retry)
+
+    def _count_retry(self, exc: Exception) -> None:
+        self.retry_count += 1
 
     # -- identity ---------------------------------------------------------------------------------------
     def info(self) -> AptInfo:
@@ -720,6 +931,8 @@ class AptRotationStage(RotaryAxis):
 
     # -- motion -----------------------------------------------------------------------------------------
     def _start_move(self, angle_deg: float) -> None:
+        # Always MOVE_ABSOLUTE: it is idempotent, so a bench layer that repeats a move after a link error
+        # lands in the same place; MOVE_RELATIVE or MOVE_HOME repeated would move again or re-home.
         self._send(move_absolute(deg_to_counts(angle_deg, self.counts_per_deg), channel=self.channel,
                                  dest=self.dest))
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import serial
 
-from .errors import DeviceDisconnected, DeviceTimeout, ProtocolError
+from .errors import DeviceDisconnected, DeviceError, DeviceTimeout, ProtocolError
 
 log = logging.getLogger(__name__)
 _SIM_PACKAGE = "drivers.sim.urlhandler"
@@ -61,19 +61,30 @@ def open_port(url: str, *, baudrate: int = 9600, timeout_s: float = 1.0, record=
     return Port(raw, name=name or url, timeout_s=timeout_s)
 
 
-def ask_again(name: str, attempt, retries: int, *, on=(ProtocolError, DeviceTimeout)):
-    """Call `attempt()`; after a garbled or cut reply (`on`) call it again, up to `retries` more times.
+#: Retries after a bad exchange on the binary links (APT, CMOS module). Line noise spoils one reply now and
+#: then; four bad replies in a row mean the link or the device is broken, and the run should stop and say so.
+DEFAULT_RETRIES = 3
 
-    Only for exchanges that are safe to repeat (queries): a set command that may have taken effect must
-    not be re-sent. The last failure is raised as it is.
+
+def ask_again(name: str, attempt, retries: int, *, on=(ProtocolError, DeviceTimeout), on_retry=None):
+    """Call `attempt()`; after a garbled, cut or late reply (`on`) call it again, up to `retries` more times.
+
+    Only for exchanges that are safe to repeat (queries, sets of an absolute value): a command that may
+    have taken effect and would act again (a relative move, a toggle) must not be re-sent. `on_retry(exc)`
+    is called before each retry (drivers count them). The last failure is raised with its own type, so a
+    caller still tells a timeout from a malformed reply from a bad CRC, and with
+    :attr:`~drivers.errors.DeviceError.attempts` set, so its message says the link was retried.
     """
     for left in range(retries, -1, -1):
         try:
             return attempt()
         except on as exc:
             if not left:
+                exc.attempts = retries + 1
                 raise
-            log.warning("%s: %s; asking again", name, exc)
+            log.warning("%s; asking again", exc if isinstance(exc, DeviceError) else f"{name}: {exc}")
+            if on_retry is not None:
+                on_retry(exc)
 
 
 class Port:
@@ -109,6 +120,10 @@ class Port:
 
     def discard_input(self) -> bytes:
         """Drop (and return) whatever is waiting, so a reply cannot be taken for an older one."""
+        return self.read_available()
+
+    def read_available(self) -> bytes:
+        """Whatever has already arrived, without waiting (a binary reader looks at what follows a frame)."""
         dropped = bytearray()
         with self._io(dropped):
             # loop: some ports (pyserial's socket://) report 1 for "something is waiting", not a count

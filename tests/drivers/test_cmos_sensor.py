@@ -8,7 +8,7 @@ import pytest
 
 from drivers import cmos_protocol as wire
 from drivers.cmos_sensor import CmosSunSensor, SensorError
-from drivers.errors import DeviceTimeout, LimitError, ProtocolError
+from drivers.errors import ChecksumError, DeviceTimeout, LimitError, ProtocolError
 from drivers.testing import scripted_port
 
 
@@ -92,15 +92,85 @@ def test_module_error_frame_is_a_typed_error():
 def test_bad_replies_are_protocol_errors_with_the_bytes(reply, message):
     with scripted_port([(frame(0x03, 1), reply)]) as port:
         with pytest.raises(ProtocolError, match=message) as info:
-            CmosSunSensor(port).exposure_ms()
+            CmosSunSensor(port, retries=0).exposure_ms()
     assert info.value.received
 
 
 def test_silence_and_a_cut_reply_are_timeouts():
     with scripted_port([(frame(0x03, 1), b"")]) as port:
         with pytest.raises(DeviceTimeout):
-            CmosSunSensor(port).exposure_ms()
+            CmosSunSensor(port, retries=0).exposure_ms()
     with scripted_port([(frame(0x03, 1), frame(0x83, 1, struct.pack("<I", 5))[:10])]) as port:
         with pytest.raises(DeviceTimeout, match="cut short") as info:
-            CmosSunSensor(port).exposure_ms()
+            CmosSunSensor(port, retries=0).exposure_ms()
     assert info.value.received.startswith(b"\xa5\x5a")
+
+
+# -- retries (issue 10 item 10) ---------------------------------------------------------------------------------------
+def exposure_reply(seq, us=5):
+    return frame(0x83, seq, struct.pack("<I", us))
+
+
+def garbled(raw: bytes) -> bytes:
+    bad = bytearray(raw)
+    bad[9] ^= 0xFF  # a payload byte: the frame arrives whole, its CRC does not match
+    return bytes(bad)
+
+
+def test_one_garbled_reply_then_a_good_one_is_a_counted_retry():
+    # asked again with the next sequence number
+    with scripted_port([(frame(0x03, 1), garbled(exposure_reply(1))), (frame(0x03, 2), exposure_reply(2))]) as port:
+        sensor = CmosSunSensor(port)
+        assert sensor.exposure_ms() == pytest.approx(0.005)
+    assert sensor.retry_count == 1
+
+
+def test_retries_are_bounded_and_the_last_problem_is_raised_typed():
+    script = [(frame(0x03, n), b"") for n in (1, 2, 3)] + [(frame(0x03, 4), garbled(exposure_reply(4)))]
+    with scripted_port(script) as port:
+        sensor = CmosSunSensor(port)
+        assert sensor.retries == 3
+        with pytest.raises(ChecksumError, match="scripted: CRC mismatch") as info:
+            sensor.exposure_ms()
+    assert info.value.attempts == 4 and "gave up after 4 attempts" in str(info.value)
+    assert sensor.retry_count == 3
+    script = [(frame(0x03, n), garbled(exposure_reply(n))) for n in (1, 2, 3)] + [(frame(0x03, 4), b"")]
+    with scripted_port(script) as port:
+        with pytest.raises(DeviceTimeout, match="scripted") as info:
+            CmosSunSensor(port).exposure_ms()
+    assert info.value.attempts == 4
+
+
+def test_a_late_capture_reply_is_skipped_and_the_capture_asked_again():
+    # the first frame comes after the driver gave up on it, just ahead of the reply to the repeated request:
+    # the sequence number tells them apart (a capture is safe to re-request: the late frame is not used)
+    old, new = np.zeros((2, 4), np.uint16), np.full((2, 4), 7, np.uint16)
+
+    def reply(seq, image, counter):
+        header = struct.pack("<HHBBII", 4, 2, 10, wire.RAW16, 4000, counter)
+        return frame(0x84, seq, header + image.astype("<u2").tobytes())
+
+    raw16 = bytes([wire.RAW16])
+    script = [(frame(0x04, 1, raw16), b""), (frame(0x04, 2, raw16), reply(1, old, 1) + reply(2, new, 2))]
+    with scripted_port(script) as port:
+        sensor = CmosSunSensor(port, packing=wire.RAW16, frame_timeout_s=0.05)
+        image, meta = sensor.capture_with_metadata()
+    np.testing.assert_array_equal(image, new)
+    assert meta["frame_counter"] == 2 and sensor.retry_count == 1
+
+
+def test_garbage_before_the_sync_is_skipped():
+    with scripted_port([(frame(0x03, 1), b"\x00\xff\xa5\x13" + exposure_reply(1))]) as port:
+        assert CmosSunSensor(port, retries=0).exposure_ms() == pytest.approx(0.005)
+
+
+def test_the_module_receiving_a_bad_crc_is_a_checksum_error_and_retried():
+    # error 3: our command reached the module garbled; sending it again is the cure
+    bad_crc = frame(0xFF, 1, b"\x03CRC mismatch")
+    with scripted_port([(frame(0x06, 1), bad_crc), (frame(0x06, 2), frame(0x86, 2, struct.pack("<h", 2512)))]) as port:
+        sensor = CmosSunSensor(port)
+        assert sensor.temperature_c() == pytest.approx(25.12)
+    assert sensor.retry_count == 1
+    with scripted_port([(frame(0x06, 1), bad_crc)]) as port:
+        with pytest.raises(ChecksumError, match="module error 3"):
+            CmosSunSensor(port, retries=0).temperature_c()

@@ -9,7 +9,7 @@ from calibration.centroid import NoSpotError, SaturatedSpotError, find_spot
 from calibration.geometry import angular_error_deg
 from calibration.pinhole import direction_from_spot
 from drivers.cmos_sensor import CmosSunSensor
-from drivers.errors import DeviceDisconnected, DeviceTimeout, ProtocolError
+from drivers.errors import ChecksumError, DeviceDisconnected, DeviceTimeout, ProtocolError
 from drivers.sim import registry
 from drivers.sim.clock import SimClock
 from drivers.sim.cmos_sensor import CmosSensorSimulator
@@ -112,18 +112,34 @@ def test_capture_reply_waits_for_the_exposure_in_real_time(bench):
     assert world.clock.now() - t0 >= 0.108 and image.shape == (480, 640)
 
 
-@pytest.mark.parametrize("fault, error", [("no_reply", DeviceTimeout), ("garble", ProtocolError),
-                                          ("truncate", DeviceTimeout), ("corrupt_crc", ProtocolError)])
-def test_faults_give_typed_errors_then_a_clean_exchange(bench, fault, error):
-    world, sim, sensor = bench
+def _inject(sim, fault, count):
     if fault == "no_reply":
         sim.faults.no_reply = True
     elif fault == "corrupt_crc":
-        sim.corrupt_crc = 1
+        sim.corrupt_crc = count
     else:
-        setattr(sim.faults, fault, 1)
-    with pytest.raises(error):
+        setattr(sim.faults, fault, count)
+
+
+@pytest.mark.parametrize("fault", ["garble", "truncate", "corrupt_crc"])
+def test_one_bad_reply_is_a_counted_retry(bench, fault):
+    world, sim, sensor = bench
+    _inject(sim, fault, 1)
+    assert sensor.temperature_c() == pytest.approx(world.temperature_c)
+    _inject(sim, fault, 1)
+    image = sensor.capture()  # a capture is asked for again, a new exposure
+    assert image.shape == (480, 640)
+    assert sensor.retry_count == 2
+
+
+@pytest.mark.parametrize("fault, error", [("no_reply", DeviceTimeout), ("garble", ProtocolError),
+                                          ("truncate", DeviceTimeout), ("corrupt_crc", ChecksumError)])
+def test_faults_give_typed_errors_then_a_clean_exchange(bench, fault, error):
+    world, sim, sensor = bench
+    _inject(sim, fault, sensor.retries + 1)  # one more bad reply than the driver retries
+    with pytest.raises(error, match=sensor.name) as info:
         sensor.temperature_c()
+    assert info.value.attempts == sensor.retries + 1
     sim.faults.clear()
     assert sensor.temperature_c() == pytest.approx(world.temperature_c)
     spot = find_spot(sensor.capture(), saturation_dn=1023)

@@ -192,10 +192,32 @@ def test_corrupted_reply_is_retried_cleanly_never_a_wrong_reading(make_stage, fa
     stage.move_to(45.0)
     setattr(sim.faults, fault, 1)
     assert abs(stage.position_deg() - 45.0) <= STEP_DEG  # one bad reply, one clean retry
-    setattr(sim.faults, fault, 2)
-    with pytest.raises(ProtocolError):
+    assert stage.retry_count == 1
+    setattr(sim.faults, fault, stage.retries + 1)  # bounded: one more bad reply than retries
+    with pytest.raises(ProtocolError, match=stage.name) as info:
         stage.position_deg()
+    assert info.value.attempts == stage.retries + 1
     assert abs(stage.position_deg() - 45.0) <= STEP_DEG
+
+
+@pytest.mark.parametrize("updates", [False, True])
+@pytest.mark.parametrize("target", [1.0, 5.0, 20.0])
+def test_truncated_reply_during_a_move_is_not_a_limit_switch(make_stage, target, updates):
+    # the back door cuts the next reply in half: a status reply keeps only its header, and the completion
+    # the stage volunteers next must not be decoded as its status word (issue 10 item 5: 60 of 60 before);
+    # with status updates on, the cut one may be an update followed by the next
+    _, sim, stage = make_stage(time_scale=20.0, timeout_s=0.2, update_period_s=0.01)
+    sim.updates = updates
+    stage.move_to(target, wait=False)
+    for _ in range(3):  # cut the next reply, three times over, while the stage moves and after it stops
+        sim.faults.truncate = 1
+        t0 = time.monotonic()
+        stage.is_moving()
+        # one broken attempt (0.2 s) and a good one: a stream of updates must not hold the deadline off
+        assert time.monotonic() - t0 < 1.0
+    stage.wait_until_stopped(timeout_s=5.0)
+    assert abs(stage.position_deg() - target) <= STEP_DEG / 2 + 1e-12
+    assert not stage.last_status.faults()
 
 
 def test_disconnect_is_device_disconnected(make_stage):
