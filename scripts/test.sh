@@ -6,4 +6,6 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 # without chromium the rest of the suite still runs; the browser tests then fail, saying how to get it
 bash scripts/setup-browser.sh || echo "WARNING: no chromium for the browser tests (see above)" >&2
+# other people's clients for the peer tests (tests/peers/): their own venvs in .venv-peers/, INDI from Debian
+bash scripts/setup-peers.sh || echo "WARNING: some peer clients are missing (see above)" >&2
 exec .venv/bin/python -m pytest -q "$@"
