@@ -304,36 +304,104 @@ def demo(
         out.print(f"bench data, calibration and C header written to {escape(str(output_dir))}/")
 
 
+#: How other people's software reaches each kind of simulated device (research/peer-clients.md, the peer tests
+#: in tests/peers/): kind → (client, how). "{url}", "{host}", "{port}" are the device's TCP address; "{pty}" is
+#: a pseudo-terminal, for a client that opens a serial port by path (`sunbench sim --pty`).
+CLIENT_HINTS: dict[str, tuple[tuple[str, str], ...]] = {
+    "apt": (("pylablib", 'Thorlabs.KinesisMotor(("serial", "{url}"), scale="K10CR1")'),
+            ("QMI", 'qmi.make_instrument("k10cr1", Thorlabs_K10CR1, "serial:{pty}")'),  # a serial transport only
+            ("thorlabs-apt-device", 'APTDevice_Motor(serial_port="{pty}", controller=EndPoint.USB, '
+                                    'bays=(EndPoint.USB,), channels=(1,))')),
+    "smc100": (("QMI", 'qmi.make_instrument("smc", Newport_SMC100CC, "tcp:{host}:{port}", "SIM", '
+                       '{{1: LinearActuator(...)}})'),
+               ("pystages", 'SMC100("{pty}", [1])')),
+    "lx200": (("INDI", "indi_lx200autostar, CONNECTION_MODE TCP, DEVICE_ADDRESS {host}:{port}"),),
+    "lamp": (("lantz-drivers", "Newport69907 on the serial port {pty}"),),
+    "shutter": (("InstrumentKit", 'ik.thorlabs.SC10.open_tcpip("{host}", {port}), prompt "> "'),),
+    "led": (("PyVISA", 'TCPIP0::{host}::{port}::SOCKET, read and write termination "\\n"'),),
+    "sensor": (("sunbench", 'CmosSunSensor(open_port("{url}"))'),),
+}
+
+
+def client_hints(kind: str, url: str, pty: str | None) -> list[str]:
+    """`client: how` for each known client of a device of `kind` served at `url` (and on `pty`, if any)."""
+    host, port = url.removeprefix("socket://").rsplit(":", 1)
+    lines = []
+    for client, how in CLIENT_HINTS.get(kind, ()):
+        text = how.format(url=url, host=host, port=port, pty=pty or "PTY")
+        if "{pty}" in how and pty is None:
+            text += "  (a serial port by path: add --pty)"
+        lines.append(f"{client}: {text}")
+    return lines
+
+
 @app.command("sim")
 @_user_errors
 def serve_simulators(
     config: Optional[Path] = typer.Option(None, "--config", "-c", help="Bench YAML file (its `simulation:` "
                                                                      "section); default: the simulated bench of examples/bench-sim.yaml."),
+    table: Optional[str] = typer.Option(None, "--table", metavar="apt|smc100|lx200",
+                                        help="The simulated table (overrides the bench file's)."),
+    source: Optional[str] = typer.Option(None, "--source", metavar="xenon|led",
+                                         help="The simulated sun simulator (overrides the bench file's)."),
+    axis_order: Optional[str] = typer.Option(None, "--axis-order", metavar="azimuth-on-zenith|zenith-on-azimuth",
+                                             help="Which stage rides on which (overrides the bench file's)."),
     host: str = typer.Option("127.0.0.1", help="Interface to listen on."),
     port: int = typer.Option(0, help="First TCP port (devices get consecutive ports); 0 = any free ports."),
     time_scale: Optional[float] = typer.Option(None, "--time-scale", min=0.0, max=1000.0,
                                                help="Override the simulated clock (0 = instant)."),
+    pty: bool = typer.Option(False, "--pty", help="Also serve every device on a pseudo-terminal, for clients "
+                                                  "that open a serial port by path (use one link at a time)."),
+    indi_compatible: bool = typer.Option(False, "--indi-compatible",
+                                         help="The LX200 answers :MA#, :Sa and :h?# as INDI expects, not as the Meade "
+                                              "manual says (the bench file's simulation.lx200.indi_compatible)."),
 ) -> None:
-    """Serve every simulated device of the bench on a TCP port and print their URLs."""
+    """Serve every simulated device of the bench on a TCP port; print each one's URL and how known clients
+    connect to it."""
     import time
+    import typing
 
-    from drivers.sim.bench import SimBench
+    from drivers.sim.bench import SimBench, SimBenchConfig
 
     bench_file = load_bench_file(config) if config else BenchFile()
-    bench = SimBench(bench_file.simulation, time_scale=time_scale)
-    server = bench.serve(host=host, base_port=port)
     sim = bench_file.simulation
-    out.print(f"simulated bench: {sim.table} table, {sim.source} source, sensor {sim.sensor.serial}, "
-              f"time scale {bench.world.clock.time_scale:g}", highlight=False)
-    for role, url in server.urls.items():
-        print(f"{role:14s} {url}", flush=True)
-    print("serving; Ctrl-C to stop", flush=True)
+    if sim is None:
+        raise BenchFileError(f"{config}: no simulation: section to serve")
+    overrides = {"table": table, "source": source, "axis_order": axis_order}
+    for field, value in overrides.items():
+        allowed = typing.get_args(SimBenchConfig.model_fields[field].annotation)
+        if value is not None and value not in allowed:
+            raise BenchFileError(f"--{field.replace('_', '-')} must be one of {', '.join(allowed)}, got {value!r}")
+    sim = SimBenchConfig.model_validate({**sim.model_dump(), **{k: v for k, v in overrides.items() if v}})
+    if indi_compatible:
+        if sim.table != "lx200":
+            raise BenchFileError(f"--indi-compatible applies to the lx200 table, not {sim.table} (--table lx200)")
+        sim = sim.model_copy(update={"lx200": sim.lx200.model_copy(update={"indi_compatible": True})})
+    bench = SimBench(sim, time_scale=time_scale)
+    server = bench.serve(host=host, base_port=port)
+    bridges = {}
     try:
+        if pty:
+            from drivers.sim.pty_bridge import PtyBridge
+            bridges = {role: PtyBridge(device).start() for role, device in bench.devices.items()}
+        out.print(f"simulated bench: {sim.table} table, {sim.source} source, {sim.axis_order}, sensor "
+                  f"{sim.sensor.serial}, time scale {bench.world.clock.time_scale:g}", highlight=False)
+        for role, url in server.urls.items():
+            print(f"{role:14s} {url}", flush=True)  # `role url`: what scripts parse
+            path = bridges[role].path if role in bridges else None
+            if path:
+                print(f"{'':15s}pty: {path}", flush=True)
+            kind = sim.table if role.startswith("table") else role
+            for line in client_hints(kind, url, path):
+                print(f"{'':15s}{line}", flush=True)
+        print("serving; Ctrl-C to stop", flush=True)
         while True:
             time.sleep(0.5)
     except KeyboardInterrupt:
         pass
     finally:
+        for bridge in bridges.values():
+            bridge.close()
         server.stop()
 
 

@@ -4,9 +4,11 @@ Protocol decisions (anchors-protocols §3.1):
 
 * Line: 57600 baud, 8N1, XON/XOFF. Commands are ``<address><CC><value>\\r\\n``; replies echo the address
   and the command, then the value: ``1TP12.5\\r\\n``.
-* ``TP``, ``TS`` and ``TE`` are sent without ``?`` (QMI and pymeasure); ``ID?`` and ``VA?`` with it.
-* Every command that has no reply (``OR``, ``PA``, ``ST``, ``VA``) is followed by ``TE``, and a letter
+* ``TP``, ``TS`` and ``TE`` are sent without ``?`` (QMI and pymeasure); ``ID?``, ``VA?`` and ``AC?`` with it.
+* Every command that has no reply (``OR``, ``PA``, ``ST``, ``VA``, ``AC``) is followed by ``TE``, and a letter
   other than ``@`` becomes a typed error carrying the letter and its meaning (pymeasure's table).
+* :meth:`Smc100Axis.expected_motion` is the velocity and acceleration the controller holds (``VA?``,
+  ``AC?``), in the stage's preset units (degrees for a rotation stage).
 * Controller states are decoded by ranges, because the public tables disagree on single codes:
   0A–11 NOT REFERENCED, 14 CONFIGURATION, 1E–1F HOMING, 28 MOVING, 32–38 READY, 3C–3F DISABLE,
   46–47 JOGGING. Positioner error bits come from pystages' table.
@@ -329,15 +331,25 @@ class Smc100Axis(RotaryAxis):
         """Move velocity [°/s] (VA?)."""
         return self._ask("VA?", float)
 
+    def acceleration_deg_s2(self) -> float:
+        """Move acceleration [°/s²] (AC?)."""
+        return self._ask("AC?", float)
+
     def expected_motion(self) -> AxisMotion:
-        """The move velocity the controller holds (VA?); the acceleration (AC) is not asked: None."""
-        return AxisMotion(self.velocity_deg_s(), None)
+        """The move velocity and acceleration the controller holds (VA?, AC?)."""
+        return AxisMotion(self.velocity_deg_s(), self.acceleration_deg_s2())
 
     def set_velocity_deg_s(self, velocity_deg_s: float) -> None:
         """Set the move velocity [°/s] (VA); the controller checks the range (TE 'C')."""
         if not (velocity_deg_s > 0 and math.isfinite(velocity_deg_s)):
             raise LimitError(self.name, f"velocity must be positive and finite, got {velocity_deg_s}")
         self._command("VA", format_number(velocity_deg_s))
+
+    def set_acceleration_deg_s2(self, accel_deg_s2: float) -> None:
+        """Set the move acceleration [°/s²] (AC); the controller checks the range (TE 'C')."""
+        if not (accel_deg_s2 > 0 and math.isfinite(accel_deg_s2)):
+            raise LimitError(self.name, f"acceleration must be positive and finite, got {accel_deg_s2}")
+        self._command("AC", format_number(accel_deg_s2))
 
     def close(self) -> None:
         self.port.close()

@@ -9,6 +9,9 @@ cd "$(dirname "$0")/.."
 
 PYTHON=${PYTHON:-python3}
 mkdir -p .venv-peers
+# one installer at a time: two runs at once would rebuild the same venv under each other
+exec 9>.venv-peers/.lock
+flock 9
 
 # peer_venv NAME PACKAGE==VERSION ...: the client in .venv-peers/NAME, pinned to the version that was tried
 peer_venv() {

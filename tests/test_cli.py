@@ -382,3 +382,56 @@ def test_fit_of_stage_angles_fits_the_bench_geometry_and_warns_of_a_wrong_one(tm
 def test_an_unknown_header_comment_is_refused_naming_its_line(tmp_path):
     path = _csv(tmp_path, f"# pixel_pich_mm: 0.0053\n{HEADER}\n0,0,1,1\n", name="typo.csv")
     assert_user_error(invoke("fit", "cmos", path), "typo.csv", "line 1", "unknown header comment 'pixel_pich_mm'")
+
+
+def test_sim_serves_the_chosen_table_and_says_how_clients_connect(tmp_path):
+    """`sunbench sim --table smc100`: `role url` lines (what scripts parse), each followed by how known clients
+    connect; the driver then homes and moves the served SMC100 over TCP."""
+    import time
+
+    from clitools import ENV, SUNBENCH
+    from drivers.interfaces import AxisMotion
+    from drivers.newport_smc100 import Smc100Axis
+
+    proc = subprocess.Popen([str(SUNBENCH), "sim", "--table", "smc100", "--source", "led", "--time-scale", "0",
+                             "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
+                            cwd=tmp_path, stdin=subprocess.DEVNULL)
+    try:
+        urls, hints, role = {}, {}, None
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            if not line or line.startswith("serving"):
+                break
+            parts = line.split()
+            if len(parts) == 2 and parts[1].startswith("socket://"):
+                role = parts[0]
+                urls[role] = parts[1]
+            elif role and line.startswith(" "):
+                hints.setdefault(role, []).append(line.strip())
+        assert set(urls) == {"table-azimuth", "table-zenith", "led", "sensor"}, (urls, proc.stderr.read())
+        port = urls["table-azimuth"].rsplit(":", 1)[1]
+        assert any(h.startswith("QMI:") and f'"tcp:127.0.0.1:{port}"' in h for h in hints["table-azimuth"])
+        assert any(h.startswith("pystages:") and "--pty" in h for h in hints["table-azimuth"])
+        led_port = urls["led"].rsplit(":", 1)[1]
+        assert any(f"TCPIP0::127.0.0.1::{led_port}::SOCKET" in h for h in hints["led"])
+
+        axis = Smc100Axis.open(urls["table-azimuth"], timeout_s=2.0, reset_wait_s=0.0)
+        try:
+            axis.poll_s = 0.002
+            assert axis.state() == "NOT REFERENCED"
+            axis.home(timeout_s=10.0)
+            axis.move_to(25.0, timeout_s=10.0)
+            assert axis.position_deg() == pytest.approx(25.0, abs=1e-5) and axis.state() == "READY"
+            assert axis.expected_motion() == AxisMotion(10.0, 20.0)
+        finally:
+            axis.close()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+    assert proc.returncode is not None
+
+
+def test_sim_refuses_an_unknown_table():
+    result = invoke("sim", "--table", "k10cr1")
+    assert result.exit_code == 2 and "--table must be one of apt, lx200, smc100, got 'k10cr1'" in flat(result.stderr)

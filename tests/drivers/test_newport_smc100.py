@@ -7,7 +7,7 @@ address and the command (``1TP12.34567``).
 import pytest
 
 from drivers.errors import DeviceFault, DeviceTimeout, LimitError, ProtocolError
-from drivers.interfaces import Limits
+from drivers.interfaces import AxisMotion, Limits
 from drivers.newport_smc100 import (
     COMMAND_ERRORS,
     Smc100Axis,
@@ -166,6 +166,17 @@ def test_velocity():
     with scripted_port([]) as port:
         with pytest.raises(LimitError):
             axis(port).set_velocity_deg_s(-1.0)
+
+
+def test_acceleration_and_expected_motion():
+    script = [(b"1VA?\r\n", b"1VA10.000000\r\n"), (b"1AC?\r\n", b"1AC20.000000\r\n"), (b"1AC8\r\n", b""), TE_OK]
+    with scripted_port(script) as port:
+        a = axis(port)
+        assert a.expected_motion() == AxisMotion(10.0, 20.0)
+        a.set_acceleration_deg_s2(8.0)
+    with scripted_port([]) as port:
+        with pytest.raises(LimitError):
+            axis(port).set_acceleration_deg_s2(0.0)
 
 
 def test_last_error():

@@ -10,7 +10,7 @@ import time
 import pytest
 
 from drivers.errors import DeviceDisconnected, DeviceFault, DeviceTimeout, LimitError, ProtocolError
-from drivers.interfaces import Limits
+from drivers.interfaces import AxisMotion, Limits
 from drivers.newport_smc100 import Smc100Axis, Smc100CommandError
 from drivers.sim import registry
 from drivers.sim.clock import SimClock
@@ -214,3 +214,147 @@ def test_simulator_refusals_follow_the_state():
     for line, letter in [(b"1PAabc", "C"), (b"1OR", "K"), (b"1PA2", "@"), (b"1PA3", "M")]:
         sim.receive(line + b"\r\n")
         assert sim.receive(b"1TE\r\n") == f"1TE{letter}\r\n".encode(), line
+
+
+def test_expected_motion_reads_velocity_and_acceleration_and_acceleration_shapes_the_move(make_axis):
+    world, sim, axis = make_axis(time_scale=20.0, spec=AxisSpec(start_true_deg=0.1))
+    assert axis.expected_motion() == AxisMotion(10.0, 20.0)
+    axis.set_acceleration_deg_s2(5.0)
+    assert axis.expected_motion() == AxisMotion(10.0, 5.0) and sim.axis.spec.accel_deg_s2 == 5.0
+    t0 = world.clock.now()
+    axis.move_to(10.0, timeout_s=5.0)
+    assert world.clock.now() - t0 >= trapezoid(10.0, 10.0, 5.0)  # 2.83 s simulated, against 1.5 s at 20 °/s²
+    with pytest.raises(Smc100CommandError) as info:
+        axis.set_acceleration_deg_s2(1e12)
+    assert info.value.code == "C"
+
+
+# -- the documented command set, as QMI and pystages send it (research/peer-clients.md) --------------------------
+def _ask(sim, line: bytes) -> bytes:
+    return sim.receive(line + b"\r\n")
+
+
+def _te(sim) -> str:
+    return _ask(sim, b"1TE").decode()[3:-2]
+
+
+def _ready_sim(time_scale=0.0, wall=None):
+    clock = SimClock(time_scale) if wall is None else SimClock(time_scale, wall=lambda: wall[0])
+    sim = Smc100Simulator(SimWorld(clock=clock), AxisSpec())
+    _ask(sim, b"1OR")
+    if wall is not None:
+        wall[0] += 1.0
+    assert _ask(sim, b"1TS") == b"1TS000032\r\n"
+    return sim
+
+
+def test_empty_lines_blanks_and_lower_case_are_accepted():
+    sim = _sim()
+    assert sim.receive(b"1TS\r\n\r\n") == b"1TS00000A\r\n"  # QMI's line, with its own CR LF after ours
+    assert sim.receive(b"\r\n") == b""
+    assert _te(sim) == "@", "an empty line is no error"
+    assert _ask(sim, b"1 t p") == b"1TP0.000000\r\n"
+    assert _ask(sim, b"1VA 2. 5") == b"" and sim.axis.spec.max_rate_deg_s == 2.5  # the manual's "2P A1.43 6"
+
+
+def test_tb_gives_the_text_of_a_letter_or_of_the_last_error():
+    sim = _sim()
+    assert _ask(sim, b"1TBH") == b"1TBH Command not allowed in NOT REFERENCED state\r\n"
+    assert _ask(sim, b"1TB@") == b"1TB@ No error\r\n"
+    _ask(sim, b"1PA5")  # refused: NOT REFERENCED
+    assert _ask(sim, b"1TB") == b"1TBH Command not allowed in NOT REFERENCED state\r\n"
+    assert _te(sim) == "@", "TB without a letter read the error"
+    assert _ask(sim, b"1TBZ") == b"" and _te(sim) == "C"
+
+
+def test_configuration_state_holds_the_parameters_and_sa_takes_effect_on_leaving_it():
+    sim = _sim()
+    assert _ask(sim, b"1PW?") == b"1PW0\r\n"
+    _ask(sim, b"1PW1")
+    assert _ask(sim, b"1TS") == b"1TS000014\r\n" and _ask(sim, b"1PW?") == b"1PW1\r\n"
+    for line, letter in [(b"1OR", "I"), (b"1PA1", "I"), (b"1BA0.01", "@"), (b"1BH0.02", "D"), (b"1BA0", "@"),
+                         (b"1BH0.02", "@"), (b"1OT20", "@"), (b"1OT1", "C"), (b"1JR0.1", "@"), (b"1AC50", "@"),
+                         (b"1SA1", "C"), (b"1SA7", "@")]:
+        _ask(sim, line)
+        assert _te(sim) == letter, line
+    assert [_ask(sim, q) for q in (b"1BA?", b"1BH?", b"1OT?", b"1JR?", b"1AC?", b"1SA?")] == [
+        b"1BA0.000000\r\n", b"1BH0.020000\r\n", b"1OT20.000000\r\n", b"1JR0.100000\r\n", b"1AC50.000000\r\n",
+        b"1SA7\r\n"]
+    _ask(sim, b"1PW0")
+    assert _ask(sim, b"1TS") == b"", "the controller now answers address 7"
+    assert _ask(sim, b"7TS") == b"7TS00000C\r\n"  # NOT REFERENCED from CONFIGURATION
+    assert _ask(sim, b"7PW?") == b"7PW0\r\n"
+
+
+def test_configuration_only_parameters_are_refused_elsewhere():
+    sim = _ready_sim()
+    for line in (b"1BA0.1", b"1BH0.1", b"1OT5", b"1SA3", b"1PW1"):
+        _ask(sim, line)
+        assert _te(sim) == "K", line
+    assert _ask(sim, b"1PW0") == b"" and _te(sim) == "K"
+
+
+def test_disable_state_mm0_and_mm1():
+    sim = _ready_sim()
+    assert _ask(sim, b"1MM?") == b"1MM1\r\n"
+    _ask(sim, b"1MM0")
+    assert _ask(sim, b"1TS") == b"1TS00003C\r\n" and _ask(sim, b"1MM?") == b"1MM0\r\n"
+    for line, letter in [(b"1PA5", "J"), (b"1OR", "J"), (b"1MM0", "@"), (b"1MM1", "@"), (b"1MM1", "@"),
+                         (b"1MM2", "C")]:
+        _ask(sim, line)
+        assert _te(sim) == letter, line
+    assert _ask(sim, b"1TS") == b"1TS000034\r\n"  # READY from DISABLE
+    _ask(sim, b"1RS")
+    _ask(sim, b"1MM0")
+    assert _te(sim) == "H"
+
+
+def test_mm0_while_moving_stops_in_disable():
+    wall = [0.0]
+    sim = _ready_sim(time_scale=1.0, wall=wall)
+    _ask(sim, b"1PA100")
+    wall[0] += 2.0
+    _ask(sim, b"1MM0")
+    assert _ask(sim, b"1TS") == b"1TS00003D\r\n"  # DISABLE from MOVING
+    here = sim.axis.position_deg()
+    wall[0] += 20.0
+    assert 0.0 < here < 100.0 and sim.axis.position_deg() == here
+
+
+def test_pt_is_the_time_of_a_relative_move_at_the_present_speeds():
+    sim = _sim()
+    assert _ask(sim, b"1PT10") == b"1PT1.500000\r\n"  # 10° at 10 °/s, 20 °/s²
+    assert _ask(sim, b"1PT-10") == b"1PT1.500000\r\n"
+    _ask(sim, b"1VA5")
+    assert _ask(sim, b"1PT10") == f"1PT{trapezoid(10.0, 5.0, 20.0):.6f}\r\n".encode()
+    assert _ask(sim, b"1PT") == b"" and _te(sim) == "C"
+
+
+def test_parameters_cannot_change_while_moving():
+    wall = [0.0]
+    sim = _ready_sim(time_scale=1.0, wall=wall)
+    _ask(sim, b"1PA50")
+    for line in (b"1VA2", b"1AC2", b"1JR1"):
+        _ask(sim, line)
+        assert _te(sim) == "M", line
+    assert _ask(sim, b"1AC?") == b"1AC20.000000\r\n"  # queries are answered in every state
+
+
+def test_address_less_st_and_mm_are_broadcast_and_other_commands_need_an_address():
+    wall = [0.0]
+    sim = _ready_sim(time_scale=1.0, wall=wall)
+    _ask(sim, b"1PA100")
+    wall[0] += 2.0
+    assert _ask(sim, b"ST") == b""  # pystages' stop()
+    assert _ask(sim, b"1TS") == b"1TS000033\r\n"
+    assert _ask(sim, b"MM0") == b"" and _ask(sim, b"1TS") == b"1TS00003C\r\n"
+    assert _ask(sim, b"MM1") == b"" and _ask(sim, b"1TS") == b"1TS000034\r\n"  # pystages before every move
+    assert _ask(sim, b"0MM0") == b"" and _ask(sim, b"1TS") == b"1TS00003C\r\n"  # pymeasure's address 0
+    assert _te(sim) == "@"
+    assert _ask(sim, b"TS") == b"" and _te(sim) == "B"
+    assert _ask(sim, b"0TS") == b"" and _te(sim) == "@", "address 0 is no controller's for a query"
+
+
+def test_sa_query_answers_the_address():
+    sim = Smc100Simulator(SimWorld(clock=SimClock(0.0)), AxisSpec(), address=3)
+    assert _ask(sim, b"3SA?") == b"3SA3\r\n"  # pystages' controller_address()
