@@ -86,6 +86,9 @@ class Msg(IntEnum):
     MOT_SET_JOGPARAMS = 0x0416
     MOT_REQ_JOGPARAMS = 0x0417
     MOT_GET_JOGPARAMS = 0x0418
+    MOT_SET_LIMSWITCHPARAMS = 0x0423
+    MOT_REQ_LIMSWITCHPARAMS = 0x0424
+    MOT_GET_LIMSWITCHPARAMS = 0x0425
     MOT_REQ_STATUSBITS = 0x0429
     MOT_GET_STATUSBITS = 0x042A
     MOT_SET_GENMOVEPARAMS = 0x043A
@@ -100,9 +103,11 @@ class Msg(IntEnum):
     MOT_MOVE_RELATIVE = 0x0448
     MOT_SET_MOVEABSPARAMS = 0x0450
     MOT_MOVE_ABSOLUTE = 0x0453
+    MOT_MOVE_VELOCITY = 0x0457
     MOT_MOVE_COMPLETED = 0x0464
     MOT_MOVE_STOP = 0x0465
     MOT_MOVE_STOPPED = 0x0466
+    MOT_MOVE_JOG = 0x046A
     MOT_REQ_STATUSUPDATE = 0x0480
     MOT_GET_STATUSUPDATE = 0x0481
     MOT_REQ_DCSTATUSUPDATE = 0x0490
@@ -287,6 +292,7 @@ _STATUSUPDATE = struct.Struct("<HllL")  # channel, position, encoder count, stat
 _DCSTATUS = struct.Struct("<HlhHL")  # channel, position, velocity, reserved, status word
 _HOMEPARAMS = struct.Struct("<HHHll")  # channel, direction, limit switch, velocity, offset
 _JOGPARAMS = struct.Struct("<HHllllH")  # channel, mode, step, min vel, accel, max vel, stop mode
+_LIMSWITCHPARAMS = struct.Struct("<HHHllH")  # channel, CW hard, CCW hard, CW soft, CCW soft, soft limit mode
 _HW_INFO = struct.Struct("<l8sH4B48s12sHHH")  # 84 bytes
 _RICHRESPONSE = struct.Struct("<HH64s")
 
@@ -390,6 +396,16 @@ def pack_jogparams(channel: int, mode: int, step: int, min_velocity: int, accel:
 
 def unpack_jogparams(data: bytes) -> tuple[int, ...]:
     return _JOGPARAMS.unpack(data[:_JOGPARAMS.size])
+
+
+def pack_limswitchparams(channel: int, cw_hard: int, ccw_hard: int, cw_soft: int, ccw_soft: int,
+                         soft_mode: int) -> bytes:
+    """Data packet ``<H H H l l H>`` of MOT_GET/SET_LIMSWITCHPARAMS (16 bytes): switch kinds, soft limits [counts]."""
+    return _LIMSWITCHPARAMS.pack(channel, cw_hard, ccw_hard, cw_soft, ccw_soft, soft_mode)
+
+
+def unpack_limswitchparams(data: bytes) -> tuple[int, ...]:
+    return _LIMSWITCHPARAMS.unpack(data[:_LIMSWITCHPARAMS.size])
 
 
 def pack_hw_info(serial: int, model: str, hw_type: int, firmware: tuple[int, int, int], notes: str = "",

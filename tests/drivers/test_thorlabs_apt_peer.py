@@ -114,3 +114,31 @@ def test_peer_package_receives_status_updates_after_start_updatemsgs(peer_bench)
     stage.move_absolute(position=round(2.5 * COUNTS_PER_DEG))
     assert _wait(lambda: not status["moving_forward"]
                  and abs(status["position"] / COUNTS_PER_DEG - 2.5) <= ONE_COUNT_DEG)
+
+
+def test_peer_package_moves_at_velocity_until_stopped(peer_bench):
+    world, sim, connect = peer_bench
+    stage = connect("polled")
+    status = stage.status_[0][0]
+    stage.move_velocity("forward")  # MOT_MOVE_VELOCITY, direction 1: counts up (sim default)
+    assert _wait(lambda: status["moving_forward"] and status["position"] / COUNTS_PER_DEG > 5.0)
+    stage.stop()  # MOT_MOVE_STOP, profiled: MOVE_STOPPED once at rest
+    assert _wait(lambda: status["msg"] == "mot_get_statusupdate" and not status["moving_forward"])
+    stopped = status["position"]
+    assert stopped / COUNTS_PER_DEG > 5.0 and not sim.axis.busy()
+    assert sim.axis.true_deg() == pytest.approx(3.0 + stopped / COUNTS_PER_DEG, abs=ONE_COUNT_DEG)
+    time.sleep(0.1)
+    assert status["position"] == stopped, "a stopped stage stays stopped"
+
+
+def test_peer_package_jogs_a_step_with_its_jog_parameters(peer_bench):
+    world, sim, connect = peer_bench
+    stage = connect("none")  # only the volunteered MOVE_COMPLETED updates its status
+    status = stage.status_[0][0]
+    step = round(2.0 * COUNTS_PER_DEG)
+    stage.set_jog_params(step, 30040, 73291090)  # 2° steps at 10 °/s, 20 °/s²; it asks them back
+    assert _wait(lambda: stage.jogparams_[0][0]["step_size"] == step)
+    stage.move_jog("reverse")  # MOT_MOVE_JOG, direction 2
+    assert _wait(lambda: status["msg"] == "mot_move_completed")
+    assert status["position"] == -step
+    assert sim.axis.true_deg() == pytest.approx(3.0 - 2.0, abs=ONE_COUNT_DEG)

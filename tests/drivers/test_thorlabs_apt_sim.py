@@ -5,6 +5,7 @@ Each test registers a fresh simulator under its own name and unregisters it afte
 
 import itertools
 import os
+import struct
 import time
 
 import pytest
@@ -17,7 +18,17 @@ from drivers.sim.motion import AxisSpec, trapezoid
 from drivers.sim.pty_bridge import PtyBridge
 from drivers.sim.thorlabs_apt import AptStageSimulator
 from drivers.sim.world import SimWorld
-from drivers.thorlabs_apt import AptRotationStage, Msg, pack_short, unpack_message
+from drivers.thorlabs_apt import (
+    MOVING_MASK,
+    AptRotationStage,
+    Msg,
+    Status,
+    header_length,
+    move_absolute,
+    pack_long,
+    pack_short,
+    unpack_message,
+)
 
 STEP_DEG = 3.0 / 409600.0  # K10CR1 encoder resolution (anchors-protocols §2.4)
 _names = itertools.count()
@@ -299,3 +310,153 @@ def test_simulator_volunteers_status_updates_on_the_simulated_clock():
     sim.receive(pack_short(Msg.HW_STOP_UPDATEMSGS))
     wall[0] = 1.0
     assert sim.poll() == b""
+
+
+# -- limit switches, jogs and moves at velocity (frames; the clock is driven by hand) -----------------------------
+COUNTS_PER_DEG = 409600.0 / 3.0
+
+
+class _HandClock:
+    """A simulator on a clock that moves only when told: `at(t)` sets the wall time [s] (time scale 1)."""
+
+    def __init__(self, spec=AxisSpec(), **kwargs):
+        self.wall = 0.0
+        world = SimWorld(clock=SimClock(1.0, wall=lambda: self.wall))
+        self.sim = AptStageSimulator(world, spec, 55000123, **kwargs)
+
+    def at(self, t: float) -> "_HandClock":
+        self.wall = t
+        return self
+
+    def send(self, *frames: bytes) -> list:
+        return _frames(self.sim.receive(b"".join(frames)))
+
+    def poll(self) -> list:
+        return _frames(self.sim.poll())
+
+    def position_deg(self) -> float:
+        return self.sim.position_counts() / COUNTS_PER_DEG
+
+
+def _frames(stream: bytes) -> list:
+    out = []
+    while stream:
+        size = 6 + header_length(stream[:6])
+        out.append(unpack_message(stream[:size]))
+        stream = stream[size:]
+    return out
+
+
+def _status(sim) -> int:
+    (reply,) = _frames(sim.receive(pack_short(Msg.MOT_REQ_STATUSBITS, 1)))
+    return struct.unpack("<HL", reply.data)[1]
+
+
+def test_limit_switch_parameters_describe_the_axis_and_can_be_set():
+    free = _HandClock().sim  # a K10CR1: turns freely, a home switch on the reverse side, no soft limits
+    (reply,) = _frames(free.receive(pack_short(Msg.MOT_REQ_LIMSWITCHPARAMS, 1)))
+    assert (reply.msg_id, len(reply.data)) == (Msg.MOT_GET_LIMSWITCHPARAMS, 16)
+    assert struct.unpack("<HHHllH", reply.data) == (1, 1, 4, 2**31 - 1, -2**31, 1)
+    stopped = _HandClock(AxisSpec(hard_limits_deg=(-95.0, 95.0), soft_limits_deg=(-90.0, 90.0))).sim
+    (reply,) = _frames(stopped.receive(pack_short(Msg.MOT_REQ_LIMSWITCHPARAMS, 1)))
+    assert struct.unpack("<HHHllH", reply.data) == (1, 2, 2, 12288000, -12288000, 2)
+
+    new = struct.pack("<HHHllH", 1, 0x82, 0x83, round(45 * COUNTS_PER_DEG), round(-30 * COUNTS_PER_DEG), 3)
+    assert free.receive(pack_long(Msg.MOT_SET_LIMSWITCHPARAMS, new)) == b""
+    (reply,) = _frames(free.receive(pack_short(Msg.MOT_REQ_LIMSWITCHPARAMS, 1)))
+    assert reply.data == new
+    assert free.axis.spec.soft_limits_deg == pytest.approx((-30.0, 45.0))
+    refused = _frames(free.receive(move_absolute(round(50 * COUNTS_PER_DEG))))
+    assert refused[0].msg_id == Msg.HW_RICHRESPONSE
+    free.receive(pack_long(Msg.MOT_SET_LIMSWITCHPARAMS, new[:-2] + struct.pack("<H", 1)))
+    assert free.axis.spec.soft_limits_deg is None
+
+
+def test_move_at_velocity_runs_until_stopped_immediately():
+    hand = _HandClock()
+    assert hand.send(pack_short(Msg.MOT_MOVE_VELOCITY, 1, 1)) == []
+    hand.at(2.0)  # 0.5 s up to 10 °/s, then 1.5 s at it: 17.5°
+    assert hand.position_deg() == pytest.approx(17.5, abs=1e-4)
+    assert _status(hand.sim) & (Status.MOVING_FORWARD | Status.ACTIVE)
+    assert hand.poll() == []
+    hand.at(3.0)
+    assert hand.position_deg() == pytest.approx(27.5, abs=1e-4)
+    # MOVE_STOP and a status request in one write: the reply first, MOVE_STOPPED volunteered after it
+    (reply,) = hand.send(pack_short(Msg.MOT_MOVE_STOP, 1, 1), pack_short(Msg.MOT_REQ_STATUSBITS, 1))
+    assert reply.msg_id == Msg.MOT_GET_STATUSBITS
+    (stopped,) = hand.poll()
+    assert stopped.msg_id == Msg.MOT_MOVE_STOPPED
+    assert struct.unpack("<HlhHL", stopped.data)[1] == round(27.5 * COUNTS_PER_DEG)
+    hand.at(10.0)
+    assert hand.position_deg() == pytest.approx(27.5, abs=1e-4) and hand.poll() == []
+
+
+def test_profiled_stop_runs_on_to_where_deceleration_ends():
+    hand = _HandClock()
+    hand.send(pack_short(Msg.MOT_MOVE_VELOCITY, 1, 2))  # reverse: counts down
+    hand.at(3.0)
+    assert hand.send(pack_short(Msg.MOT_MOVE_STOP, 1, 2)) == []
+    assert hand.poll() == [], "still braking"
+    assert _status(hand.sim) & Status.MOVING_REVERSE
+    hand.at(3.0 + 2**0.5 * 10.0 / 20.0 - 0.01)  # the braking move takes √2·v/a (module docstring) …
+    assert hand.poll() == []
+    hand.at(3.0 + 2**0.5 * 10.0 / 20.0 + 0.06)  # … and the settle time
+    (stopped,) = hand.poll()
+    assert stopped.msg_id == Msg.MOT_MOVE_STOPPED
+    assert hand.position_deg() == pytest.approx(-27.5 - 10.0**2 / (2 * 20.0), abs=1e-4)  # v²/2a further
+    assert not _status(hand.sim) & MOVING_MASK
+
+
+def test_move_at_velocity_stops_on_a_hard_limit_switch():
+    hand = _HandClock(AxisSpec(hard_limits_deg=(-20.0, 20.0)))
+    hand.send(pack_short(Msg.MOT_MOVE_VELOCITY, 1, 1))
+    hand.at(5.0)
+    (stopped,) = hand.poll()
+    assert stopped.msg_id == Msg.MOT_MOVE_STOPPED
+    assert struct.unpack("<HlhHL", stopped.data)[4] & Status.FORWARD_LIMIT
+    assert hand.position_deg() == pytest.approx(20.0, abs=STEP_DEG)
+
+
+def test_jog_step_uses_the_jog_parameters_and_completes():
+    hand = _HandClock()
+    (jog,) = hand.send(pack_short(Msg.MOT_REQ_JOGPARAMS, 1))
+    mode, step, _, _, max_velocity, stop_mode = struct.unpack("<HHllllH", jog.data)[1:]
+    assert (mode, stop_mode) == (2, 2) and step == round(COUNTS_PER_DEG)  # 1° single steps
+    jog_params = struct.pack("<HHllllH", 1, 2, round(3 * COUNTS_PER_DEG), 0, 30040, max_velocity // 2, 2)
+    hand.send(pack_long(Msg.MOT_SET_JOGPARAMS, jog_params))  # 3° at 5 °/s
+    hand.send(pack_short(Msg.MOT_MOVE_JOG, 1, 1))
+    assert _status(hand.sim) & Status.JOGGING_FORWARD
+    duration = trapezoid(3.0, 5.0, 20.0)
+    hand.at(duration * 0.9)
+    assert hand.poll() == [] and 0.0 < hand.position_deg() < 3.0
+    hand.at(duration + 0.06)  # and the settle time
+    (done,) = hand.poll()
+    assert done.msg_id == Msg.MOT_MOVE_COMPLETED and hand.position_deg() == pytest.approx(3.0, abs=STEP_DEG)
+    assert not _status(hand.sim) & MOVING_MASK
+
+
+def test_continuous_jog_runs_until_stopped_and_direction_sense_is_an_option():
+    hand = _HandClock(forward_counts_up=False)
+    jog_params = struct.pack("<HHllllH", 1, 1, round(COUNTS_PER_DEG), 0, 30040, 73291090, 2)  # continuous
+    hand.send(pack_long(Msg.MOT_SET_JOGPARAMS, jog_params))
+    hand.send(pack_short(Msg.MOT_MOVE_JOG, 1, 1))  # forward, which counts down on this stage
+    hand.at(2.0)
+    assert hand.position_deg() == pytest.approx(-17.5, abs=1e-4)
+    assert _status(hand.sim) & Status.JOGGING_FORWARD
+    hand.send(pack_short(Msg.MOT_MOVE_STOP, 1, 1))
+    assert [m.msg_id for m in hand.poll()] == [Msg.MOT_MOVE_STOPPED]
+
+
+def test_set_poscounter_rereferences_the_counter_not_the_load():
+    hand = _HandClock(AxisSpec(start_true_deg=12.0))
+    true = hand.sim.axis.true_deg()
+    hand.send(pack_long(Msg.MOT_SET_POSCOUNTER, struct.pack("<Hl", 1, round(5 * COUNTS_PER_DEG))))
+    assert hand.position_deg() == pytest.approx(5.0, abs=STEP_DEG)
+    assert hand.sim.axis.true_deg() == pytest.approx(true, abs=1e-12)
+
+
+def test_unknown_message_ids_are_noted_once_per_resync():
+    sim = _sim()
+    reply = sim.receive(pack_short(0x0427, 1) + pack_short(Msg.MOT_REQ_STATUSBITS, 1))  # REQ_POWERPARAMS
+    assert [m.msg_id for m in _frames(reply)] == [Msg.MOT_GET_STATUSBITS]
+    assert sim.unknown_ids == [0x0427]
