@@ -12,7 +12,10 @@ and RTS2 ``newport-lamp.cpp``, agree on it):
   error bit raises :class:`Oriel69907Error` carrying the register value.
 * ``A-PRESET=5.5`` is sent with one decimal (lantz and RTS2 agree); ``P-PRESET=0095`` zero-padded to four
   digits (lantz; RTS2 sends a plain integer — a zero-padded value also parses as a plain one, the reverse is
-  not sure, so the padded form is the safer choice).
+  not sure, so the padded form is the safer choice). The limits go the same way: ``A-LIM=12.0``,
+  ``P-LIM=0100`` (lantz); ``RST`` restores the factory settings (lantz ``reset``).
+* The supply never drives the lamp past ``A-LIM`` or ``P-LIM``: a preset beyond them runs at the limit and
+  lights STB bit 1 ("limit") — :attr:`StatusByte.limit` tells that the lamp is not at its preset.
 
 Bits are decoded with masks, never with ``>`` comparisons (lantz's comparisons mis-handle exact powers of
 two, §4.1). STB: 7 lamp on, 6 external control, 5 power mode (clear = current mode), 4 calibration mode,
@@ -352,8 +355,35 @@ class Oriel69907:
 
     def set_power_preset_w(self, power_w: int) -> None:
         """Set the power preset [W] (``P-PRESET=0095``, four digits), checked against `max_power_w` first."""
+        self._command(f"P-PRESET={self._check_watts('power preset', power_w):04d}")
+
+    # -- limits ---------------------------------------------------------------------------------------
+    def current_limit_a(self) -> float:
+        """Get the current limit [A] (``A-LIM?``)."""
+        return self._ask("A-LIM?", self._number)
+
+    def set_current_limit_a(self, current_a: float) -> None:
+        """Set the current limit [A] (``A-LIM=12.0``, one decimal), checked against `max_current_a` first: the
+        driver never lets the supply drive more than it would preset."""
+        current_a = float(current_a)
+        if not (math.isfinite(current_a) and 0.0 <= current_a <= self.max_current_a):
+            raise LimitError(self.name, f"current limit {current_a} A is outside [0, {self.max_current_a}] A")
+        self._command(f"A-LIM={current_a:.1f}")
+
+    def power_limit_w(self) -> float:
+        """Get the power limit [W] (``P-LIM?``)."""
+        return self._ask("P-LIM?", self._number)
+
+    def set_power_limit_w(self, power_w: int) -> None:
+        """Set the power limit [W] (``P-LIM=0100``, four digits), checked against `max_power_w` first."""
+        self._command(f"P-LIM={self._check_watts('power limit', power_w):04d}")
+
+    def reset(self) -> None:
+        """Restore the supply's factory presets and limits (``RST``); the driver's own limits still apply."""
+        self._command("RST")
+
+    def _check_watts(self, what: str, power_w) -> int:
         whole = isinstance(power_w, (int, float)) and not isinstance(power_w, bool) and float(power_w).is_integer()
         if not (whole and 0 <= power_w <= self.max_power_w):
-            raise LimitError(self.name, f"power preset {power_w!r} W is not a whole number in "
-                                        f"[0, {self.max_power_w}] W")
-        self._command(f"P-PRESET={int(power_w):04d}")
+            raise LimitError(self.name, f"{what} {power_w!r} W is not a whole number in [0, {self.max_power_w}] W")
+        return int(power_w)

@@ -2,9 +2,10 @@
 
 Command subset (anchors-protocols §4.2, from RTS2 ``agilent-e3631a.cpp``): ``*IDN?``, ``SYST:REM``,
 ``APPL [<output>,]<V>,<A>``, ``CURR <A>`` / ``CURR?``, ``OUTP ON|OFF``, ``OUTP?``, ``MEAS:CURR?``,
-``MEAS:VOLT?``, ``SYST:ERR?`` (a reply starting ``+0`` means no error). Every set is followed by
-``SYST:ERR?``; an error in the queue raises :class:`ScpiError` with its code and text, after the queue has
-been read empty so the next check starts clean.
+``MEAS:VOLT?``, ``SYST:ERR?`` (code 0 means no error: ``0,"No error"`` as SCPI-99 writes it, ``+0,"No error"``
+as Keysight supplies do; both are read). Every set is followed by ``SYST:ERR?``; an error in the queue raises
+:class:`ScpiError` with its code and text, after the queue has been read empty so the next check starts clean.
+Each command goes in a message of its own, so the SCPI path rules of ``;`` compounds never apply to it.
 
 Line framing, and why:
 

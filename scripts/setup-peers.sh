@@ -43,7 +43,7 @@ peer_venv qmi "qmi==0.54.2"
 peer_venv pylablib "pylablib==1.4.5" "pyserial>=3.5"
 peer_venv pystages "pystages==1.4.2"
 peer_venv pyvisa "pyvisa==1.16.2" "pyvisa-py==0.8.1" "pymeasure==0.16.0"
-peer_venv lantz "lantz-core==0.5.3" "lantz-drivers==0.5.2" "pyvisa" "pyserial>=3.5"
+peer_venv lantz "lantz-core==0.5.3" "lantz-drivers==0.5.2" "pyvisa" "pyvisa-py==0.8.1" "pyserial>=3.5"
 # instrumentkit 0.6.0 pins ruamel.yaml ~=0.15 (no wheel for Python >= 3.10) and enum34 (which shadows the
 # standard enum on Python 3): its other dependencies are installed, then the package itself without them
 peer_venv instrumentkit numpy "pyserial>=3.3" "pyvisa>=1.9" "quantities>=0.12.1" "future>=0.15" \

@@ -235,3 +235,35 @@ def test_a_power_outside_the_limit_is_refused_with_nothing_sent(power_w):
 def test_a_garbled_esr_after_a_set_raises_protocol_error():
     with scripted_port([(b"P-PRESET=0095\r", b"\x1fS\x08\x300\r")], timeout_s=T) as port, pytest.raises(ProtocolError):
         supply(port).set_power_preset_w(95)
+
+
+# -- limits and reset -----------------------------------------------------------------------------------
+def test_limits_are_read_and_set_in_the_lantz_formats():
+    script = [(b"A-LIM?\r", b"12.0\r"), (b"P-LIM?\r", b"0100\r"), (b"A-LIM=10.0\r", b"ESR00\r"),
+              (b"P-LIM=0080\r", b"ESR00\r")]
+    with scripted_port(script, timeout_s=T) as port:
+        psu = supply(port)
+        assert psu.current_limit_a() == 12.0 and psu.power_limit_w() == 100.0
+        psu.set_current_limit_a(10.0)
+        psu.set_power_limit_w(80)
+
+
+@pytest.mark.parametrize("method, value", [("set_current_limit_a", 12.5), ("set_current_limit_a", math.nan),
+                                           ("set_power_limit_w", 101), ("set_power_limit_w", 99.5)])
+def test_a_limit_beyond_the_drivers_is_refused_with_nothing_sent(method, value):
+    with scripted_port([], timeout_s=T) as port, pytest.raises(LimitError):
+        getattr(supply(port, max_current_a=12.0, max_power_w=100), method)(value)
+
+
+def test_a_limit_refused_by_the_supply_raises_with_the_register():
+    with scripted_port([(b"P-LIM=0090\r", b"ESR10\r")], timeout_s=T) as port, pytest.raises(Oriel69907Error) as info:
+        supply(port).set_power_limit_w(90)
+    assert info.value.status.execution_error and info.value.command == "P-LIM=0090"
+
+
+def test_reset_sends_rst_and_checks_the_esr():
+    with scripted_port([(b"RST\r", b"ESR00\r"), (b"RST\r", b"ESR20\r")], timeout_s=T) as port:
+        psu = supply(port)
+        psu.reset()
+        with pytest.raises(Oriel69907Error):
+            psu.reset()

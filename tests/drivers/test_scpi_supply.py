@@ -54,6 +54,11 @@ def test_next_error():
         assert psu(port).next_error() == (-113, "Undefined header")
 
 
+def test_no_error_in_the_scpi_99_form_without_a_sign():
+    with scripted_port([(b"CURR 0.700\n", b""), (b"SYST:ERR?\n", b'0,"No error"\n')], timeout_s=T) as port:
+        psu(port).set_current_a(0.7)
+
+
 def test_check_errors_reads_the_queue_empty_and_raises_with_every_entry():
     script = [(b"SYST:ERR?\n", b'-222,"Data out of range"\n'), (b"SYST:ERR?\n", b'-113,"Undefined header"\n'),
               NO_ERROR]

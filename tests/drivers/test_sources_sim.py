@@ -21,7 +21,7 @@ from drivers.shutter import ThorlabsSC10
 from drivers.sim import registry
 from drivers.sim.clock import SimClock
 from drivers.sim.lamp import LED, XENON, LampSpec
-from drivers.sim.oriel69907 import Oriel69907Simulator
+from drivers.sim.oriel69907 import Oriel69907Simulator, amps_for_watts
 from drivers.sim.scpi_supply import ScpiSupplySimulator
 from drivers.sim.shutter import ShutterSimulator, ThorlabsSC10Simulator
 from drivers.sim.world import SimWorld
@@ -163,10 +163,70 @@ def test_arc_lamp_on_with_a_burning_lamp_does_not_strike_again(make_arc):
 
 
 def test_arc_lamp_on_sets_the_current_preset(make_arc):
+    arc = make_arc(current_a=4.5)
+    arc.source.lamp_on()
+    assert arc.world.lamp.current_a == 4.5
+    assert arc.supply.current_preset_a() == 4.5 and arc.supply.amps() == 4.5
+    assert not arc.supply.status_byte().limit
+
+
+def test_arc_power_limit_holds_the_lamp_at_its_limit(make_arc):
+    """P-LIM is enforced: 6 A would take 6 × 19.8 = 119 W from the 100 W factory limit, so the supply runs the
+    lamp at 100 W and lights its LIMIT bit; a lower limit holds it lower, a preset within it runs as set."""
     arc = make_arc(current_a=6.0)
     arc.source.lamp_on()
-    assert arc.world.lamp.current_a == 6.0
-    assert arc.supply.current_preset_a() == 6.0 and arc.supply.amps() == 6.0
+    assert arc.supply.current_preset_a() == 6.0 and arc.supply.power_limit_w() == 100.0
+    assert arc.supply.watts() == 100.0 and arc.supply.amps() == pytest.approx(5.2, abs=0.05)
+    assert arc.supply.status_byte().limit and arc.world.lamp.current_a < 6.0
+    arc.supply.set_power_limit_w(80)
+    assert arc.supply.watts() == 80.0 and arc.world.lamp.current_a == pytest.approx(amps_for_watts(80))
+    with pytest.raises(Oriel69907Error) as info:
+        arc.supply.set_power_preset_w(90)  # a preset above the limit is refused
+    assert info.value.status.execution_error
+    arc.supply.set_current_preset_a(4.0)
+    assert arc.supply.amps() == 4.0 and not arc.supply.status_byte().limit and arc.world.lamp.current_a == 4.0
+
+
+def test_arc_current_limit_below_the_preset_holds_the_lamp(make_arc):
+    arc = make_arc()
+    arc.source.lamp_on()
+    arc.supply.set_current_limit_a(4.0)
+    assert arc.supply.amps() == 4.0 and arc.supply.status_byte().limit and arc.supply.current_preset_a() == 5.0
+    arc.supply.reset()  # RST: the factory limits again; the lamp burns on at the factory preset
+    assert (arc.supply.current_limit_a(), arc.supply.power_limit_w()) == (12.0, 100.0)
+    assert arc.supply.amps() == 5.0 and not arc.supply.status_byte().limit and arc.world.lamp.on
+
+
+def test_arc_limits_above_the_supply_rating_are_refused(serve):
+    sim = Oriel69907Simulator(SimWorld(), rating_a=20.0, rating_w=200)
+    port = open_port(serve(sim), timeout_s=TIMEOUT_S)
+    port.query(b"ESR?\r", b"\r")
+    assert port.query(b"A-LIM=20.5\r", b"\r") == b"ESR10\r" and sim.a_limit == 12.0
+    assert port.query(b"P-LIM=0201\r", b"\r") == b"ESR10\r" and sim.p_limit == 100
+    assert port.query(b"P-LIM=0200\r", b"\r") == b"ESR00\r" and port.query(b"P-LIM?\r", b"\r") == b"0200\r"
+
+
+def test_69920_mode_and_panel_commands_only_as_an_option(serve):
+    """MODE= and COMM= are the 69920's (UNCONFIRMED for the 69907): a command error unless asked for."""
+    world = SimWorld()
+    port = open_port(serve(Oriel69907Simulator(world)), timeout_s=TIMEOUT_S)
+    port.query(b"ESR?\r", b"\r")
+    assert port.query(b"MODE=0\r", b"\r") == b"ESR20\r" and port.query(b"COMM=1\r", b"\r") == b"ESR20\r"
+
+    world = SimWorld()
+    sim = Oriel69907Simulator(world, sibling_commands=True)
+    port = open_port(serve(sim), timeout_s=TIMEOUT_S)
+    port.query(b"ESR?\r", b"\r")
+    assert port.query(b"P-PRESET=0080\r", b"\r") == b"ESR00\r"
+    assert port.query(b"MODE=0\r", b"\r") == b"ESR00\r"  # power mode: the lamp runs at P-PRESET
+    assert port.query(b"COMM=1\r", b"\r") == b"ESR00\r"
+    assert port.query(b"STB?\r", b"\r") == b"STB25\r"  # power mode, panel locked, interlock closed
+    assert port.query(b"START\r", b"\r") == b"ESR00\r"
+    assert port.query(b"WATTS?\r", b"\r") == b"80\r"
+    assert world.lamp.current_a == pytest.approx(amps_for_watts(80))
+    assert port.query(b"MODE=1\r", b"\r") == b"ESR10\r"  # not while the lamp burns
+    sim.front_panel_mode(False)  # the operator turns the knob instead
+    assert port.query(b"AMPS?\r", b"\r") == b"5.0\r" and port.query(b"STB?\r", b"\r") == b"STB85\r"
 
 
 def test_arc_lamp_off_stops_the_lamp(make_arc):
@@ -478,3 +538,231 @@ def test_led_out_of_range_current_is_refused_with_nothing_sent(make_led):
     with pytest.raises(LimitError):
         led.supply.set_current_a(5.0)
     assert led.sent == [] and led.sim.commands == 0
+
+
+# == the SCPI supply's parser and status model (SCPI-99, IEEE 488.2) =======================================
+@pytest.fixture
+def scpi(serve):
+    """A fresh simulated supply on a sim:// port; ``ask(text)`` sends one program message, returns its answer."""
+    world = SimWorld(clock=SimClock(0.0), lamp_spec=LED)
+    sim = ScpiSupplySimulator(world)
+    port = open_port(serve(sim), timeout_s=TIMEOUT_S)
+
+    def ask(text: str) -> str:
+        if "?" not in text:
+            port.write(text.encode() + b"\n")
+            return ""
+        return port.query(text.encode() + b"\n", b"\n")[:-1].decode()
+
+    ask.sim, ask.world = sim, world
+    return ask
+
+
+def test_scpi_compounds_follow_the_root_and_path_rules(scpi):
+    scpi("INST:NSEL 1;:VOLT 5;:CURR 0.5")
+    assert scpi("VOLT?;CURR?;:INST:NSEL?") == "+5.00000000E+00;+5.00000000E-01;1"
+    scpi("SOUR:VOLT 4;CURR 0.25")  # CURR is SOUR:CURR
+    assert scpi("SOUR:VOLT?;CURR?") == "+4.00000000E+00;+2.50000000E-01"
+    scpi("INST:NSEL 1;VOLT 3")  # VOLT is INST:VOLT: undefined, never a silent loss
+    assert scpi("VOLT?") == "+4.00000000E+00"
+    assert scpi("SYST:ERR?") == '-113,"Undefined header"'
+    assert scpi("MEAS:VOLT?;CURR?") == "+0.00000000E+00;+0.00000000E+00"  # MEAS:CURR?, output off
+
+
+def test_scpi_optional_nodes_long_and_short_forms(scpi):
+    scpi("source:voltage:level:immediate:amplitude 4.5")
+    scpi(":SOURce:CURRent:LEVel 300mA")
+    scpi("OUTPut:STATe ON")
+    assert scpi("VOLTage:LEVel?;:CURR:IMM:AMPL?;:OUTP:STAT?") == "+4.50000000E+00;+3.00000000E-01;1"
+    assert scpi("MEASure:SCALar:CURRent:DC?;:MEAS:VOLT?") == "+3.00000000E-01;+3.20000000E+00"
+    assert scpi("SYSTem:ERRor:NEXT?") == '0,"No error"'
+
+
+def test_scpi_common_commands(scpi):
+    assert scpi("*IDN?") == "SUNBENCH,SCPI-SUPPLY-SIM,0,1.0"
+    assert scpi("*ESR?;*ESR?") == "128;0"  # power-on bit, cleared by the read
+    assert scpi("*OPC?;*OPT?;*TST?;:SYST:VERS?") == "1;0;0;1999.0"
+    scpi("*OPC")
+    assert scpi("*ESR?") == "1"
+    scpi("VOLT 1;*RST")
+    assert scpi("VOLT?;CURR?;OUTP?;:INST?") == "+0.00000000E+00;+5.15000000E+00;0;P6V"
+    scpi("*ESE 48;*SRE 32")
+    assert scpi("*ESE?;*SRE?;*STB?") == "48;32;16"  # MAV: two answers are pending
+    scpi("BOGUS")
+    assert scpi("*STB?") == str(0x04 | 0x20 | 0x40)  # error queue, ESB (CME enabled), MSS (ESB enabled)
+    assert scpi("*IDN?;*STB?").endswith(";" + str(0x04 | 0x10 | 0x20 | 0x40))  # and MAV: an answer is pending
+    scpi("*CLS")
+    assert scpi("*STB?;*ESR?;:SYST:ERR?") == '0;0;0,"No error"'
+    assert scpi("*ESE?") == "48"  # *CLS keeps the enables
+
+
+@pytest.mark.parametrize("command, code, bit", [
+    ("VOLT 99", -222, 0x10), ("FOO:BAR", -113, 0x20), ("VOLT abc", -104, 0x20), ("VOLT: 5", -102, 0x20),
+    ("VOLT", -109, 0x20), ("VOLT 1,2", -108, 0x20), ("CURR 1 V", -131, 0x20), ("OUTP MAYBE", -224, 0x10),
+    ("INST P99V", -224, 0x10), ("INST:NSEL 4", -222, 0x10), ("SYST:VERS", -113, 0x20), ("MEAS:VOLT 1", -113, 0x20),
+    ("*FOO", -113, 0x20), ("VOLT (1", -102, 0x20), ("*IDN? 1", -108, 0x20),
+])
+def test_scpi_every_error_is_queued_and_sets_its_event_bit(scpi, command, code, bit):
+    scpi("*CLS")
+    before = (scpi.sim.voltages[:], scpi.sim.currents[:], scpi.sim.states[:], scpi.sim.selected)
+    if "?" in command:
+        scpi.sim.receive(command.encode() + b"\n")
+    else:
+        scpi(command)
+    error, esr = scpi("SYST:ERR?;*ESR?").split(";")
+    assert int(error.split(",")[0]) == code and int(esr) == bit
+    assert (scpi.sim.voltages, scpi.sim.currents, scpi.sim.states, scpi.sim.selected) == before
+
+
+def test_scpi_error_queue_order_and_overflow(scpi):
+    scpi("VOLT 99;FOO")
+    assert scpi("SYST:ERR:COUN?") == "2"
+    assert scpi("SYST:ERR?;ERR?;ERR?") == '-222,"Data out of range";-113,"Undefined header";0,"No error"'
+    for _ in range(25):
+        scpi("FOO")
+    errors = [scpi("SYST:ERR?") for _ in range(21)]
+    assert errors[:19] == ['-113,"Undefined header"'] * 19
+    assert errors[19:] == ['-350,"Queue overflow"', '0,"No error"']
+
+
+def test_scpi_outputs_are_selected_and_switched_alone_with_a_channel_list(scpi):
+    scpi("INST P25V;:VOLT 12;CURR 0.1;:APPL N25V,-5,0.2")
+    assert scpi("INST?;:INST:NSEL?;:VOLT?;:APPL? N25V") == 'P25V;2;+1.20000000E+01;"-5.000000,0.200000"'
+    assert scpi("VOLT? MAX;VOLT? MIN;:INST:NSEL 3;:VOLT? MIN") == "+2.57500000E+01;+0.00000000E+00;-2.57500000E+01"
+    scpi("OUTP ON,(@2)")
+    assert scpi("OUTP? (@1:3);:MEAS:VOLT? P25V;:MEAS:VOLT? (@1)") == "0,1,0;+1.20000000E+01;+0.00000000E+00"
+    assert not scpi.world.lamp.on  # output 1, the LED, stays off
+    scpi("OUTP:TRAC ON;:INST:NSEL 2;:VOLT 7")
+    assert scpi("OUTP:TRAC?;:INST N25V;:VOLT?") == "1;-7.00000000E+00"
+    scpi("OUTP ON")  # no list: every output
+    assert scpi("OUTP? (@1,2,3)") == "1,1,1" and scpi.world.lamp.on
+
+
+def test_scpi_led_below_its_forward_voltage_draws_what_the_voltage_allows(scpi):
+    scpi("APPL P6V,3.2,0.7;:OUTP ON")  # 3.2 V allows 0.3 A through 2.9 V + 1 V/A
+    assert scpi("MEAS:CURR?;VOLT?") == "+3.00000000E-01;+3.20000000E+00"
+    assert scpi.world.lamp.current_a == pytest.approx(0.3)
+    scpi("VOLT 6")
+    assert scpi("MEAS:CURR?;VOLT?") == "+7.00000000E-01;+3.60000000E+00" and scpi.world.lamp.current_a == 0.7
+
+
+# == the SC10's full keyword set and its timed modes =======================================================
+@pytest.fixture
+def sc10(serve):
+    """A fresh simulated SC10 on a sim:// port at time scale 0 (time moves only when the test moves it);
+    ``ask(command)`` returns the value line, or None for a command answered with the echo and prompt only."""
+    world = SimWorld(clock=SimClock(0.0))
+    sim = ThorlabsSC10Simulator(world)
+    port = open_port(serve(sim), timeout_s=TIMEOUT_S)
+
+    def ask(command: str) -> str | None:
+        reply = port.query(command.encode() + b"\r", b"> ").decode()
+        lines = reply[:-2].split("\r")
+        assert lines[0] == command and lines[-1] == ""
+        return lines[1] if len(lines) == 3 else None
+
+    ask.sim, ask.world = sim, world
+    return ask
+
+
+def test_sc10_answers_the_manuals_keyword_table(sc10):
+    assert sc10("?").split() == ["?", "id?", "ens", "ens?", "rep=n", "rep?", "mode=n", "mode?", "trig=n", "trig?",
+                                 "xto=n", "xto?", "open=n", "open?", "shut=n", "shut?", "closed?", "interlock?",
+                                 "baud=n", "baud?", "save", "savp", "resp"]
+    defaults = {"mode": "1", "rep": "1", "trig": "0", "xto": "0", "open": "100", "shut": "100", "baud": "0"}
+    assert {name: sc10(name + "?") for name in defaults} == defaults
+    for name, value in (("mode", "4"), ("rep", "99"), ("trig", "1"), ("xto", "1"), ("open", "999999"),
+                        ("shut", "0"), ("baud", "1")):
+        assert sc10(f"{name}={value}") is None and sc10(name + "?") == value
+    for bad in ("mode=0", "mode=6", "rep=0", "rep=100", "trig=2", "xto=x", "open=1000000", "shut=-1", "baud=2",
+                "mode="):
+        assert sc10(bad) == "Command error CMD_ARG_INVALID"
+    for unknown in ("ens=1", "ens=0", "open", "foo?", "MODE?", "default?"):
+        assert sc10(unknown) == "Command error CMD_NOT_DEFINED"
+    assert sc10("mode?") == "4" and sc10("ens?") == "0"  # the bad ones changed nothing
+
+
+def test_sc10_stores_loads_and_restores_its_settings(sc10):
+    sc10("open=250")
+    sc10("xto=1")
+    assert sc10("savp") is None and sc10("save") is None
+    sc10("open=400")
+    sc10("xto=0")
+    assert sc10("resp") is None
+    assert sc10("open?") == "250" and sc10("xto?") == "0"  # resp loads the configuration, not the mode info
+    assert sc10.sim.stored["xto"] == 1
+    assert sc10("default") is None
+    assert sc10("open?") == "100" and sc10("xto?") == "0" and sc10.sim.stored["open"] == 250
+
+
+def test_sc10_instrumentkit_readings_are_options(sc10):
+    sc10.sim.accept_ens_value, sc10.sim.action_reply = True, "1"
+    assert sc10("ens=1") is None and sc10("closed?") == "0" and sc10.world.lamp.shutter_open
+    assert sc10("ens=1") is None and sc10("ens?") == "1"  # a set, not a toggle
+    assert sc10("ens=0") is None and sc10("closed?") == "1"
+    assert sc10("ens=2") == "Command error CMD_ARG_INVALID"
+    assert [sc10(c) for c in ("savp", "save", "resp", "default")] == ["1", "1", "1", "1"]
+
+
+def test_sc10_auto_mode_cycles_while_enabled(sc10):
+    clock, lamp = sc10.world.clock, sc10.world.lamp
+    for command in ("mode=2", "open=50", "shut=150", "ens"):
+        sc10(command)
+    seen = []
+    for t in (0.01, 0.049, 0.051, 0.199, 0.201, 0.26, 0.41):
+        clock.advance_to(t)
+        seen.append(sc10("closed?"))
+        assert lamp.shutter_open == (seen[-1] == "0")
+    assert seen == ["0", "0", "1", "1", "0", "1", "0"]
+    sc10("ens")
+    assert sc10("closed?") == "1" and sc10("ens?") == "0"
+
+
+def test_sc10_single_and_repeat_modes_end_by_themselves(sc10):
+    clock = sc10.world.clock
+    for command in ("mode=3", "open=100", "shut=100", "ens"):
+        sc10(command)
+    assert sc10("closed?") == "0"
+    clock.advance(0.15)
+    assert sc10("closed?") == "1" and sc10("ens?") == "1"
+    clock.advance(0.1)
+    assert sc10("ens?") == "0"  # one shot: the controller disables itself
+    for command in ("mode=4", "rep=3", "ens"):
+        sc10(command)
+    opened = 0
+    for _ in range(12):
+        was_open = sc10("closed?") == "0"
+        clock.advance(0.05)
+        if was_open and sc10("closed?") == "1":
+            opened += 1
+    assert opened == 3 and sc10("ens?") == "0"
+
+
+def test_sc10_polling_keeps_the_world_in_step(sc10):
+    """Between commands the world's shutter follows the timing when the port is polled (a TCP or pty link
+    polls every few milliseconds)."""
+    clock, lamp = sc10.world.clock, sc10.world.lamp
+    for command in ("mode=2", "open=100", "shut=100", "ens"):
+        sc10(command)
+    clock.advance(0.15)
+    assert lamp.shutter_open
+    sc10.sim.poll()
+    assert not lamp.shutter_open
+
+
+def test_sc10_external_trigger_and_gate(sc10):
+    clock, sim = sc10.world.clock, sc10.sim
+    for command in ("mode=3", "trig=1", "open=100", "ens"):
+        sc10(command)
+    assert sc10("closed?") == "1" and sc10("ens?") == "1"  # armed
+    sim.external_trigger()
+    assert sc10("closed?") == "0"
+    clock.advance(0.5)
+    assert sc10("closed?") == "1" and sc10("ens?") == "1"  # still armed for the next pulse
+    sc10("mode=5")  # a new mode disables the controller
+    assert sc10("ens?") == "0"
+    sc10("ens")
+    sim.set_gate(True)
+    assert sc10("closed?") == "0"
+    sim.set_gate(False)
+    assert sc10("closed?") == "1"
