@@ -156,8 +156,10 @@ class _Connector:
             with _connecting("table", url):
                 port = open_port(url, baudrate=LX200_BAUDRATE, timeout_s=config.timeout_s)
                 self.closers.append(port.close)
+                # slew_reply="auto": a mount that answers :MA# as the Meade manual says or as INDI expects (the
+                # simulator's indi_compatible mode) both work; the slew is judged by what the mount does
                 table = LX200Table(port, Limits(*config.azimuth_limits_deg), Limits(*config.zenith_limits_deg),
-                                   high_precision=config.high_precision)
+                                   high_precision=config.high_precision, slew_reply="auto")
                 table.connect()
             self.where["table"] = url
             return table  # an alt-az mount has no homing: its position is absolute

@@ -42,6 +42,10 @@ Protocol decisions of this driver (see also :data:`OK_CHARS`)
   format varies by model (§1.3), any non-space byte before ``#`` counts as a bar, and after the bars clear
   the driver checks the position against the target (§1.3 "poll position until within tolerance"): a mount
   that stopped short (limit, obstruction) raises :class:`~drivers.errors.DeviceFault`.
+* The ``:MA#`` reply is read as the ``slew_reply`` option says: Rev L's (``0`` = no fault, the default), INDI's
+  (``1`` = slewing; what the simulator answers in its ``indi_compatible`` mode) or ``"auto"``, which takes
+  either character and judges the slew by the ``:D#`` bars or, once they are gone, by the position at the
+  target. The bench (``bench/hardware.py``) uses ``"auto"``, so it drives a mount of either kind.
 * Targets are sent in the current precision (``sDD*MM`` low, ``sDD*MM'SS`` high, as Rev L lists for
   ``:Sa``), with an ASCII ``*`` as degree sign like INDI; ``:Sz`` with seconds is UNCONFIRMED (Rev L shows
   only ``DDD*MM``), so a mount that refuses it can be driven in low precision (``high_precision=False``).
@@ -83,10 +87,20 @@ ALIGNMENT_MODES = {"A": "alt-az", "L": "land", "P": "polar", "D": "firmware down
 #: table, so a mount that disagrees is fixed here, in one place.
 OK_CHARS: dict[str, bytes] = {"Sa": b"1", "Sz": b"1", "MA": b"0"}
 
+#: The ok characters INDI's LX200 drivers expect (indi-bin 1.9.9, ``lx200driver.cpp``: ``setStandardProcedure``
+#: reads one byte and takes ``0`` as failure, anything else as success; ``slewToAltAz`` sends ``:MA#`` through
+#: it). They differ from :data:`OK_CHARS` on ``:MA#`` only: Rev L's ``0`` = no fault reads as "slew is not
+#: possible" in INDI. The simulator answers from this table in its ``indi_compatible`` mode.
+INDI_OK_CHARS: dict[str, bytes] = {**OK_CHARS, "MA": b"1"}
 
-def refusal_char(command: str) -> bytes:
-    """The reply character that means "refused / fault" for `command` (a key of :data:`OK_CHARS`)."""
-    return b"0" if OK_CHARS[command] == b"1" else b"1"
+#: How :class:`LX200Table` reads the ``:MA#`` reply (its ``slew_reply`` option): ``"manual"`` with
+#: :data:`OK_CHARS`, ``"indi"`` with :data:`INDI_OK_CHARS`, ``"auto"`` from what the mount does.
+SLEW_REPLIES = ("manual", "indi", "auto")
+
+
+def refusal_char(command: str, table: dict[str, bytes] = OK_CHARS) -> bytes:
+    """The reply character that means "refused / fault" for `command` (a key of :data:`OK_CHARS`) in `table`."""
+    return b"0" if table[command] == b"1" else b"1"
 
 
 class MountBusy(DeviceTimeout):
@@ -256,6 +270,14 @@ class LX200Table(RotaryTable):
         The mount's slew speed [°/s] and acceleration [°/s²] for duration estimates; the LX200 protocol cannot
         be asked for them (``:Sw`` only sets the largest rate on Autostar II mounts), so they are configured
         values; None = unknown.
+    slew_reply : {"manual", "indi", "auto"}
+        How the one-char reply to ``:MA#`` is read (the CONFLICT of :data:`OK_CHARS`): ``"manual"`` = Rev L,
+        ``0`` no fault / ``1`` fault; ``"indi"`` = the reverse, as INDI expects and as the simulator answers
+        in its ``indi_compatible`` mode (:data:`INDI_OK_CHARS`); ``"auto"`` takes either character and judges
+        the slew by what the mount does: distance bars (``:D#``) or, once they are gone, the position at the
+        target; a mount that neither moves nor is there refused (:class:`~drivers.errors.DeviceFault`). A mode
+        that does not match the mount fails safe: a slew that started reads as refused (DeviceFault), and a
+        refusal reads as "no fault" until the arrival check of :meth:`wait_until_stopped` raises.
     """
 
     def __init__(self, port: Port, azimuth_limits: Limits, zenith_limits: Limits, *, name: str | None = None,
@@ -263,7 +285,7 @@ class LX200Table(RotaryTable):
                  nak_retries: int = 5, nak_wait_s: float = 0.05, nak_window_s: float = 0.015, retries: int = 1,
                  poll_s: float = 0.05, arrival_tolerance_deg: float = 2.0 / 60.0,
                  home_deg: tuple[float, float] = (0.0, 0.0), slew_rate_deg_s: float | None = None,
-                 slew_accel_deg_s2: float | None = None):
+                 slew_accel_deg_s2: float | None = None, slew_reply: str = "manual"):
         if not (isinstance(azimuth_limits, Limits) and isinstance(zenith_limits, Limits)):
             raise TypeError("`azimuth_limits` and `zenith_limits` must be Limits")
         if zenith_limits.low_deg < -90 or zenith_limits.high_deg > 90:
@@ -274,6 +296,8 @@ class LX200Table(RotaryTable):
             raise ValueError("retry counts, waits and poll interval must be >= 0")
         if not arrival_tolerance_deg > 0:
             raise ValueError(f"`arrival_tolerance_deg` must be > 0, got {arrival_tolerance_deg}")
+        if slew_reply not in SLEW_REPLIES:
+            raise ValueError(f"`slew_reply` must be one of {SLEW_REPLIES}, got {slew_reply!r}")
         self.port = port
         self.name = name or port.name
         self.azimuth_limits, self.zenith_limits = azimuth_limits, zenith_limits
@@ -284,8 +308,11 @@ class LX200Table(RotaryTable):
         self.arrival_tolerance_deg = arrival_tolerance_deg
         self.home_deg = home_deg
         self.slew_rate_deg_s, self.slew_accel_deg_s2 = slew_rate_deg_s, slew_accel_deg_s2
+        self.slew_reply = slew_reply
+        self.ok_chars = INDI_OK_CHARS if slew_reply == "indi" else OK_CHARS
         self.high_precision: bool | None = None  # None until a :GA#/:GZ# reply shows the format
         self._target: tuple[float, float] | None = None  # (azimuth, zenith) of the move in progress
+        self._sent_target: tuple[float, float] | None = None  # (azimuth, zenith) last sent with :Sz/:Sa
 
     # -- framing -----------------------------------------------------------------------------------------
     def _exchange_once(self, command: bytes, kind: str) -> bytes:
@@ -341,7 +368,7 @@ class LX200Table(RotaryTable):
     def _set(self, command: str, argument: str = "") -> None:
         """Send a set/slew command whose reply is one char from :data:`OK_CHARS` (anchors-protocols §1.3)."""
         wire = f":{command}{argument}#".encode("latin-1")
-        ok, refused = OK_CHARS[command], refusal_char(command)
+        ok, refused = self.ok_chars[command], refusal_char(command, self.ok_chars)
 
         def parse(reply: bytes) -> bytes:
             if reply not in (ok, refused):
@@ -350,8 +377,10 @@ class LX200Table(RotaryTable):
 
         if self._query(wire, _CHAR, parse) == refused:
             log.warning("%s: %r answered %r", self.name, wire, refused)  # verbatim, for the OK_CHARS conflict
+            table = "OK_CHARS" if self.ok_chars is OK_CHARS else "INDI_OK_CHARS"
             raise DeviceFault(self.name, f"mount refused {wire!r} (reply {refused!r}; ok is {ok!r} in "
-                                         f"drivers.meade.OK_CHARS, see its CONFLICT note)", received=refused)
+                                         f"drivers.meade.{table}, see the CONFLICT note of OK_CHARS)",
+                              received=refused)
 
     def _string(self, command: bytes) -> str:
         return self._query(command, _FRAME).decode("latin-1")[:-1].strip()
@@ -494,12 +523,31 @@ class LX200Table(RotaryTable):
         azimuth = self._format(wrap_azimuth_deg(azimuth_deg), False, 3)
         if azimuth.startswith("360"):  # 359.9999° rounds up to a full turn
             azimuth = self._format(0.0, False, 3)
+        self._sent_target = None
         self._set("Sz", azimuth)
         self._set("Sa", self._format(zenith_deg, True, 2))
+        self._sent_target = (azimuth_deg, zenith_deg)
 
     def slew(self) -> None:
-        """Slew to the alt-az target with ``:MA#`` (anchors-protocols §1.3)."""
-        self._set("MA")
+        """Slew to the alt-az target with ``:MA#`` (anchors-protocols §1.3), its reply read as `slew_reply` says."""
+        if self.slew_reply != "auto":
+            self._set("MA")
+            return
+
+        def parse(reply: bytes) -> bytes:
+            if reply not in (b"0", b"1"):
+                raise ValueError("expected b'0' or b'1'")
+            return reply
+
+        reply = self._query(b":MA#", _CHAR, parse)
+        if self.is_moving():
+            return
+        # no bars: a slew that has already ended (a short one, or a simulator at time scale 0), or none at all
+        if self._sent_target is not None and self._off_target(self.position(), self._sent_target) is None:
+            return
+        log.warning("%s: b':MA#' answered %r and the mount did not move", self.name, reply)
+        raise DeviceFault(self.name, f"mount refused b':MA#' (reply {reply!r}, no slew in progress and not at the "
+                                     f"target; slew_reply='auto')", received=reply)
 
     def move_to(self, azimuth_deg: float, zenith_deg: float, *, wait: bool = True, timeout_s: float = 120.0) -> None:
         """Move to (azimuth, Ω) [°]; both soft limits are checked before any byte is sent.
@@ -535,13 +583,16 @@ class LX200Table(RotaryTable):
             time.sleep(self.poll_s)
         position = self.position()
         target, self._target = self._target, None
-        if target is not None:
-            d_az = (position[0] - target[0] + 180.0) % 360.0 - 180.0  # azimuth compares modulo a turn
-            d_zen = position[1] - target[1]
-            if max(abs(d_az), abs(d_zen)) > self.arrival_tolerance_deg:
-                raise DeviceFault(self.name, f"stopped at ({position[0]:.4f}, {position[1]:.4f})°, target "
-                                             f"({target[0]:.4f}, {target[1]:.4f})°: limit or obstruction?")
+        if target is not None and self._off_target(position, target) is not None:
+            raise DeviceFault(self.name, f"stopped at ({position[0]:.4f}, {position[1]:.4f})°, target "
+                                         f"({target[0]:.4f}, {target[1]:.4f})°: limit or obstruction?")
         return position
+
+    def _off_target(self, position: tuple[float, float], target: tuple[float, float]) -> float | None:
+        """The larger axis error [°] if `position` misses `target` by more than the arrival tolerance, else None."""
+        d_az = (position[0] - target[0] + 180.0) % 360.0 - 180.0  # azimuth compares modulo a turn
+        error = max(abs(d_az), abs(position[1] - target[1]))
+        return error if error > self.arrival_tolerance_deg else None
 
     def expected_motion(self) -> tuple[AxisMotion | None, AxisMotion | None]:
         """The configured slew speed for both axes (the mount slews them together); (None, None) if unknown."""

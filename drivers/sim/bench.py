@@ -110,6 +110,20 @@ class MountConfig(_Strict):
     tilt_y_deg: float = -0.33
 
 
+class Lx200SimConfig(_Strict):
+    """The simulated LX200 mount's site, clock and client compatibility (:mod:`drivers.sim.lx200`).
+
+    `indi_compatible` answers ``:MA#``, ``:Sa`` and ``:h?#`` as INDI's LX200 drivers expect instead of as the
+    Meade manual says (the conflicts are listed in :mod:`drivers.sim.lx200`). The site defaults to seed 003's
+    NSU (Novosibirsk); the longitude is east positive, `utc_offset_h` in Meade's sign (hours added to local
+    time to give UTC: −7 for UTC+7)."""
+
+    indi_compatible: bool = False
+    latitude_deg: float = Field(54.85, ge=-90, le=90)
+    longitude_deg: float = Field(83.1, ge=-180, le=180)
+    utc_offset_h: float = Field(-7.0, ge=-24, le=24)
+
+
 class SimBenchConfig(_Strict):
     """The simulated bench (the ``simulation:`` section of a bench file)."""
 
@@ -123,6 +137,7 @@ class SimBenchConfig(_Strict):
     mount: MountConfig = MountConfig()
     azimuth_axis: AxisConfig = AxisConfig()
     zenith_axis: AxisConfig = AxisConfig(hard_limits_deg=(-95.0, 95.0))  # the defaults are examples/bench-sim.yaml
+    lx200: Lx200SimConfig = Lx200SimConfig()  # used when `table` is lx200
     temperature_c: float = 22.0
 
 
@@ -162,7 +177,7 @@ class SimBench:
         az, zen = self.config.azimuth_axis.spec(), self.config.zenith_axis.spec()
         if self.config.table == "lx200":
             from .lx200 import LX200Simulator
-            return {"table": LX200Simulator(self.world, az, zen)}
+            return {"table": LX200Simulator(self.world, az, zen, **self.config.lx200.model_dump())}
         if self.config.table == "apt":
             from .thorlabs_apt import AptStageSimulator
             a = AptStageSimulator(self.world, az, 55000001)

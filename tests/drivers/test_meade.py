@@ -8,8 +8,8 @@ import pytest
 
 from drivers.errors import DeviceFault, DeviceTimeout, LimitError, ProtocolError
 from drivers.interfaces import Limits
-from drivers.meade import (OK_CHARS, LX200Table, MountBusy, format_sexagesimal, has_seconds, parse_sexagesimal,
-                           refusal_char, wrap_azimuth_deg)
+from drivers.meade import (INDI_OK_CHARS, OK_CHARS, LX200Table, MountBusy, format_sexagesimal, has_seconds,
+                           parse_sexagesimal, refusal_char, wrap_azimuth_deg)
 from drivers.testing import scripted_port
 
 AZ_LIMITS, ZEN_LIMITS = Limits(0.0, 359.0), Limits(-5.0, 85.0)
@@ -290,6 +290,49 @@ def test_an_unknown_set_reply_is_a_protocol_error_with_the_bytes():
 def test_the_ok_char_table_holds_the_research_note_defaults():
     assert OK_CHARS == {"Sa": b"1", "Sz": b"1", "MA": b"0"}  # research note §1.3 recommendation
     assert (refusal_char("Sa"), refusal_char("Sz"), refusal_char("MA")) == (b"0", b"0", b"1")
+
+
+def test_the_indi_table_differs_from_the_manual_on_ma_only():
+    assert INDI_OK_CHARS == {**OK_CHARS, "MA": b"1"}  # INDI: "0" is failure (lx200driver.cpp)
+    assert refusal_char("MA", INDI_OK_CHARS) == b"0"
+
+
+def test_slew_reply_indi_reads_one_as_slewing_and_zero_as_a_fault():
+    with scripted_port([(b":MA#", b"1")]) as port:
+        table(port, slew_reply="indi").slew()
+    with scripted_port([(b":MA#", b"0")]) as port:
+        with pytest.raises(DeviceFault, match="INDI_OK_CHARS") as err:
+            table(port, slew_reply="indi").slew()
+    assert err.value.received == b"0"
+
+
+@pytest.mark.parametrize("reply", [b"0", b"1"])
+def test_slew_reply_auto_takes_either_char_when_the_bars_show(reply):
+    with scripted_port([(b":MA#", reply), (b":D#", b"|#")]) as port:
+        table(port, slew_reply="auto").slew()
+
+
+@pytest.mark.parametrize("reply", [b"0", b"1"])
+def test_slew_reply_auto_takes_a_slew_already_ended_at_the_target(reply):
+    script = [(b":Sz010*00#", b"1"), (b":Sa+20*00#", b"1"), (b":MA#", reply), (b":D#", b"#"),
+              (b":GZ#", b"010\xdf00#"), (b":GA#", b"+20\xdf00#")]
+    with scripted_port(script) as port:
+        table(port, precision=False, slew_reply="auto").move_to(10.0, 20.0, wait=False)
+
+
+@pytest.mark.parametrize("reply", [b"0", b"1"])
+def test_slew_reply_auto_refuses_a_mount_that_neither_moves_nor_is_there(reply):
+    script = [(b":Sz010*00#", b"1"), (b":Sa+20*00#", b"1"), (b":MA#", reply), (b":D#", b"#"),
+              (b":GZ#", b"000\xdf00#"), (b":GA#", b"+00\xdf00#")]
+    with scripted_port(script) as port:
+        with pytest.raises(DeviceFault, match="refused") as err:
+            table(port, precision=False, slew_reply="auto").move_to(10.0, 20.0, wait=False)
+    assert err.value.received == reply
+
+
+def test_an_unknown_slew_reply_mode_is_refused():
+    with pytest.raises(ValueError, match="slew_reply"):
+        LX200Table(object(), AZ_LIMITS, ZEN_LIMITS, slew_reply="ascom")
 
 
 @pytest.mark.parametrize("azimuth, zenith", [(400.0, 10.0), (-1.0, 10.0), (10.0, 86.0), (10.0, -90.0),

@@ -2,16 +2,20 @@
 code as on hardware, with the world's truth and the fault back door to check what the wire cannot show."""
 
 import itertools
+import random
 import time
+from datetime import datetime, timedelta, timezone
 from uuid import uuid4
 
 import pytest
 
 from drivers.errors import DeviceDisconnected, DeviceFault, DeviceTimeout, ProtocolError
 from drivers.interfaces import Limits
-from drivers.meade import LX200Table, MountBusy
+from drivers.meade import INDI_OK_CHARS, OK_CHARS, LX200Table, MountBusy, format_sexagesimal
+from drivers.sim.bench import SimBench, SimBenchConfig
 from drivers.sim.clock import SimClock
-from drivers.sim.lx200 import LX200Simulator
+from drivers.sim.lx200 import (SIDEREAL_RATE_DEG_S, LX200Simulator, equatorial_to_horizontal,
+                               greenwich_sidereal_time_deg, horizontal_to_equatorial)
 from drivers.sim.motion import AxisSpec, trapezoid
 from drivers.sim.registry import register, unregister
 from drivers.sim.world import SimWorld
@@ -238,3 +242,229 @@ def test_many_moves_stay_deterministic(bench):
     for azimuth, zenith in itertools.product((0.0, 45.0, 270.0), (-5.0, 30.0, 49.0)):
         table.move_to(azimuth, zenith)
         assert table.position() == pytest.approx((azimuth, zenith), abs=ARCSEC)
+
+
+# -- issue 11: what INDI's LX200 drivers send (sky, site, time, goto, moves, park) ----------------------------
+UTC = timezone.utc
+J2000 = datetime(2000, 1, 1, 12, 0, 0, tzinfo=UTC)
+
+
+def _query(port, command: bytes, n: int | None = None) -> bytes:
+    port.write(command)
+    return port.read_exact(n) if n else port.read_until(b"#")
+
+
+def test_sidereal_time_matches_meeus():
+    # Meeus, Astronomical Algorithms, example 12.a: 1987 April 10, 0h UT → GMST 13h10m46.3668s
+    assert greenwich_sidereal_time_deg(datetime(1987, 4, 10, tzinfo=UTC)) / 15.0 == pytest.approx(
+        13 + 10 / 60 + 46.3668 / 3600, abs=0.02 / 3600)
+    assert greenwich_sidereal_time_deg(J2000) == pytest.approx(280.46061837)
+
+
+def test_horizontal_and_equatorial_conversions_are_inverse_and_right_at_landmarks():
+    rng = random.Random(11)
+    for _ in range(500):
+        alt, az, lat, lst = rng.uniform(-89, 89), rng.uniform(0, 360), rng.uniform(-89, 89), rng.uniform(0, 360)
+        ra, dec = horizontal_to_equatorial(alt, az, lat, lst)
+        assert equatorial_to_horizontal(ra, dec, lat, lst) == pytest.approx((alt, az), abs=1e-7)
+    lat, lst = 54.85, 100.0
+    assert horizontal_to_equatorial(90.0, 0.0, lat, lst) == pytest.approx((lst, lat))  # zenith: RA = LST
+    assert horizontal_to_equatorial(lat, 0.0, lat, lst)[1] == pytest.approx(90.0)  # north at the latitude: pole
+    assert horizontal_to_equatorial(0.0, 180.0, lat, lst) == pytest.approx((lst, lat - 90.0))  # south horizon
+    ra, dec = horizontal_to_equatorial(0.0, 90.0, lat, lst)  # due east on the horizon: rising, 6 h east
+    assert (ra, dec) == pytest.approx(((lst + 90.0) % 360.0, 0.0), abs=1e-9)
+
+
+@pytest.mark.parametrize("high_precision, ra, dec", [(True, b"18:41:51#", b"+54\xdf51:00#"),
+                                                     (False, b"18:41.8#", b"+54\xdf51#")])
+def test_ra_dec_of_the_zenith_in_both_precisions(high_precision, ra, dec):
+    sim = LX200Simulator(SimWorld(clock=SimClock(0.0)), high_precision=high_precision, longitude_deg=0.0,
+                         start_utc=J2000)  # the default mount: altitude up to 90°
+    sim.altitude.move_to(90.0)
+    assert sim.pose_deg() == (0.0, 90.0)  # at time scale 0 the clock jumped to the end of the move…
+    sim.set_utc(J2000)  # …so the back door sets the time again
+    assert sim.receive(b":GR#") == ra  # at the zenith RA = local sidereal time = GMST at longitude 0
+    assert sim.receive(b":GD#") == dec  # and Dec = latitude, 0xDF degree sign
+    assert sim.receive(b":GS#") == b"18:41:51#"  # the sidereal time is always HH:MM:SS
+
+
+def test_the_sky_turns_with_the_simulated_clock(bench):
+    wall = FakeWall()
+    table, sim, _ = bench(time_scale=10.0, wall=wall, start_utc=J2000)
+    ra0, dec0 = sim.equatorial_deg()
+    wall.t = 36.0  # 360 simulated seconds
+    ra1, dec1 = sim.equatorial_deg()
+    assert (ra1 - ra0) % 360.0 == pytest.approx(360.0 * SIDEREAL_RATE_DEG_S, rel=1e-6)  # 1.504°
+    assert dec1 == pytest.approx(dec0)  # pointing north on the horizon: on the meridian, Dec holds
+    assert sim.utc() == J2000 + timedelta(seconds=360)
+
+
+def test_site_and_time_getters_answer_in_the_manuals_formats(bench):
+    start = datetime(2026, 11, 24, 3, 4, 5, tzinfo=UTC)
+    table, sim, _ = bench(connect=False, start_utc=start)
+    port = table.port
+    replies = {cmd: _query(port, cmd) for cmd in (b":Gc#", b":Gt#", b":Gg#", b":GG#", b":GL#", b":GC#", b":GM#",
+                                                   b":GT#", b":GVD#", b":GVT#", b":GVN#", b":GVF#", b":GVP#")}
+    assert replies == {b":Gc#": b"24#", b":Gt#": b"+54\xdf51#", b":Gg#": b"-083\xdf06#",  # east negative
+                       b":GG#": b"-07#",  # UTC+7: hours added to local time to give UTC
+                       b":GL#": b"10:04:05#", b":GC#": b"11/24/26#", b":GM#": b"Bench#", b":GT#": b"60.2#",
+                       b":GVD#": b"Nov 21 2025#", b":GVT#": b"12:00:00#", b":GVN#": b"43Eg#",
+                       b":GVF#": b"Autostar 43Eg#", b":GVP#": b"Autostar#"}
+    assert sim.unknown == []
+
+
+def test_site_and_time_setters(bench):
+    table, sim, _ = bench(connect=False, start_utc=J2000)
+    port = table.port
+    for command, reply in [(b":St-33*52#", b"1"), (b":Sg289*45#", b"1"), (b":SG-03.5#", b"1"),
+                           (b":SL23:15:00#", b"1"), (b":SC02/29/24#", b"1Updating Planetary Data#" + b" " * 32 + b"#"),
+                           (b":St+91*00#", b"0"), (b":Sg400*00#", b"0"), (b":SG+25.0#", b"0"), (b":SL24:00:00#", b"0"),
+                           (b":SC02/30/24#", b"0"), (b":Stxyz#", b"0"), (b":SL1:2#", b"0")]:
+        port.write(command)
+        assert port.read_exact(len(reply)) == reply, command
+    # Rev L longitude 289°45′ west = 70°15′ east; INDI's signed form is taken too
+    assert (sim.latitude_deg, sim.longitude_deg, sim.utc_offset_h) == pytest.approx((-(33 + 52 / 60), 70.25, -3.5))
+    assert sim.local_time() == datetime(2024, 2, 29, 23, 15)
+    assert sim.utc() == datetime(2024, 2, 29, 19, 45, tzinfo=UTC)  # UTC = local + offset (Rev L's sign)
+    port.write(b":Sg-013*24#")
+    assert port.read_exact(1) == b"1" and sim.longitude_deg == pytest.approx(13.4)
+    port.write(b":SG+00#")  # the offset changes, the local time stays (the module docstring)
+    assert port.read_exact(1) == b"1" and sim.local_time() == datetime(2024, 2, 29, 23, 15)
+    assert sim.unknown == []
+
+
+def test_equatorial_goto_slews_to_the_targets_alt_az_now(bench):
+    table, sim, world = bench(start_utc=J2000)
+    port = table.port
+    ra_deg, dec_deg = horizontal_to_equatorial(30.0, 150.0, sim.latitude_deg, sim.sidereal_time_deg())
+    ra_text = format_sexagesimal(ra_deg / 15.0, high_precision=True, signed=False, degree_sign=":", seconds_sign=":")
+    dec_text = format_sexagesimal(dec_deg, high_precision=True, degree_sign="*", seconds_sign=":")
+    assert _query(port, f":Sr{ra_text}#".encode(), 1) == b"1"
+    assert _query(port, f":Sd{dec_text}#".encode(), 1) == b"1"
+    assert _query(port, b":Gr#") == f"{ra_text}#".encode()
+    assert _query(port, b":MS#", 1) == b"0"
+    table.wait_until_stopped(timeout_s=2.0)
+    # at time scale 0 the sky stands still; the RA target was rounded to 1 s of time (15″ at most)
+    assert table.position() == pytest.approx((150.0, 30.0), abs=10 * ARCSEC)
+    assert world.stage_true_deg() == pytest.approx((150.0, 30.0), abs=10 * ARCSEC)
+
+
+def test_equatorial_targets_that_do_not_parse_and_a_goto_without_target_are_refused(bench):
+    table, sim, _ = bench(connect=False, start_utc=J2000)
+    port = table.port
+    assert _query(port, b":MS#") == b"1No Target#"
+    for bad in (b":Sr24:00:00#", b":Sr12:60.0#", b":Sr1:2:3#", b":Sd+91*00#", b":Sd+45#"):
+        assert _query(port, bad, 1) == b"0", bad
+    assert _query(port, b":Sr12:30.5#", 1) == b"1" and sim.target_ra_h == pytest.approx(12.5 + 0.5 / 60)
+    assert not (sim.azimuth.busy() or sim.altitude.busy())
+
+
+@pytest.mark.parametrize("altitude, reply", [(-20.0, b"1Object Below Horizon#"),
+                                             (80.0, b"2Object Above Higher Limit#")])
+def test_an_equatorial_goto_outside_the_altitude_range_is_refused(altitude, reply):
+    # the "horizon" of the bench's mount is its altitude axis's range (the zenith stage goes below 0°)
+    sim = LX200Simulator(SimWorld(clock=SimClock(0.0)), AZ_SPEC, AxisSpec(soft_limits_deg=(-10.0, 45.0)),
+                         start_utc=J2000)
+    ra, dec = horizontal_to_equatorial(altitude, 200.0, sim.latitude_deg, sim.sidereal_time_deg())
+    sim.target_ra_h, sim.target_dec_deg = ra / 15.0, dec
+    assert sim.receive(b":MS#") == reply
+    assert not (sim.azimuth.busy() or sim.altitude.busy())
+    assert sim.receive(b":Sa+50*00#:Sa-11*00#") == b"00"  # the same range refuses alt-az targets
+
+
+@pytest.mark.parametrize("indi_compatible", [False, True])
+def test_sa_format_and_ma_reply_follow_the_manual_or_indi(bench, indi_compatible):
+    table, sim, _ = bench(connect=False, indi_compatible=indi_compatible)
+    port = table.port
+    lenient = b"1" if indi_compatible else b"0"  # INDI's %+02d: one digit, a lost sign
+    for command, reply in [(b":Sa+05*00#", b"1"), (b":Sa+5*00#", lenient), (b":Sa5*00#", lenient),
+                           (b":Sa-5*30#", lenient), (b":Sz045*00#", b"1")]:
+        assert _query(port, command, 1) == reply, command
+    assert sim.target_altitude_deg == (-5.5 if indi_compatible else 5.0)
+    assert _query(port, b":MA#", 1) == (b"1" if indi_compatible else b"0")  # the CONFLICT (module docstring)
+    sim.alignment = "L"
+    assert _query(port, b":MA#", 1) == (b"0" if indi_compatible else b"1")  # and its fault char
+
+
+def test_manual_moves_run_at_the_selected_rate_until_stopped(bench):
+    wall = FakeWall()
+    table, sim, _ = bench(time_scale=1.0, wall=wall, connect=False)
+    port = table.port
+    port.write(b":RC#:Mn#:Me#")  # centering rate: 0.25 °/s
+    wall.t = 4.0
+    assert sim.pose_deg()[1] == pytest.approx(0.25 * 4.0 - 0.25 ** 2 / 20.0 / 2, abs=1e-6)  # up (north)
+    port.write(b":Qn#")  # only the northward move stops
+    wall.t = 8.0
+    azimuth, altitude = sim.pose_deg()
+    assert altitude == pytest.approx(0.9984375, abs=1e-6)
+    assert azimuth == pytest.approx(0.25 * 8.0 - 0.25 ** 2 / 20.0 / 2, abs=1e-5)  # east: azimuth increasing
+    port.write(b":Qs#")  # halts southward moves only: the east move goes on
+    assert sim.azimuth.busy()
+    port.write(b":RS#:Ms#")  # max rate (the axis's 10 °/s), down; then :Q# stops everything
+    wall.t = 9.0
+    port.write(b":Q#")
+    assert not (sim.azimuth.busy() or sim.altitude.busy())
+    assert sim.pose_deg()[1] == pytest.approx(0.9984375 - 7.5, abs=1e-6)  # 0.5 s accelerating, 0.5 s at 10 °/s
+    assert sim.unknown == []
+
+
+def test_a_move_into_a_tripped_limit_switch_does_nothing(bench):
+    table, sim, _ = bench(connect=False)
+    sim.altitude.trip_limit("high")
+    table.port.write(b":Mn#")
+    assert not sim.altitude.busy()
+    table.port.write(b":Ms#")  # off the switch works, down to the fixture's lower hard limit switch
+    assert sim.pose_deg()[1] == pytest.approx(-10.0) and sim.altitude.limit_hit == "low"
+
+
+@pytest.mark.parametrize("indi_compatible", [False, True])
+def test_park_and_home_status(bench, indi_compatible):
+    wall = FakeWall()
+    end = b"#" if indi_compatible else b""  # Rev L: a bare char; INDI reads up to '#'
+    table, sim, _ = bench(time_scale=1.0, wall=wall, indi_compatible=indi_compatible, park_deg=(90.0, 10.0))
+    port = table.port
+    assert _query(port, b":h?#", 1 + len(end)) == b"1" + end  # at power-up (UNCONFIRMED)
+    port.write(b":hP#")
+    assert _query(port, b":h?#", 1 + len(end)) == b"2" + end
+    wall.t = 30.0
+    assert _query(port, b":h?#", 1 + len(end)) == b"1" + end
+    assert sim.pose_deg() == pytest.approx((90.0, 10.0), abs=ARCSEC)
+    table.slew_reply = "auto"  # either mode's :MA# reply
+    table.move_to(0.0, 0.0, wait=False)
+    wall.t = 60.0
+    table.wait_until_stopped(timeout_s=1.0)
+    port.write(b":hP#")
+    wall.t = 61.0
+    port.write(b":Q#")  # a park stopped short
+    assert _query(port, b":h?#", 1 + len(end)) == b"0" + end
+
+
+def test_sim_bench_lx200_section_reaches_the_simulator():
+    config = SimBenchConfig(table="lx200", time_scale=0.0,
+                            lx200={"indi_compatible": True, "latitude_deg": -31.25, "longitude_deg": 149.0625,
+                                   "utc_offset_h": -10.0})
+    sim = SimBench(config).devices["table"]
+    assert sim.indi_compatible and (sim.latitude_deg, sim.longitude_deg, sim.utc_offset_h) == (-31.25, 149.0625, -10.0)
+    assert sim.receive(b":Gt#:Gg#") == b"-31\xdf15#-149\xdf04#"
+    assert SimBench(SimBenchConfig(table="lx200")).devices["table"].indi_compatible is False
+
+
+@pytest.mark.parametrize("indi_compatible, slew_reply", [(False, "manual"), (True, "indi"), (False, "auto"),
+                                                         (True, "auto")])
+def test_the_driver_reads_the_slew_reply_of_either_mode(bench, indi_compatible, slew_reply):
+    table, sim, _ = bench(indi_compatible=indi_compatible)
+    table.slew_reply, table.ok_chars = slew_reply, INDI_OK_CHARS if slew_reply == "indi" else OK_CHARS
+    table.move_to(33.0, 22.0)
+    assert table.position() == pytest.approx((33.0, 22.0), abs=ARCSEC)
+    sim.altitude.trip_limit("high")
+    with pytest.raises(DeviceFault, match="refused"):
+        table.move_to(33.0, 40.0)  # further into the switch: the mount refuses and does not move
+
+
+def test_a_manual_driver_on_an_indi_compatible_mount_still_catches_a_refusal_at_arrival(bench):
+    table, sim, _ = bench(indi_compatible=True)  # the driver reads Rev L: "1" is a fault to it
+    with pytest.raises(DeviceFault, match="refused"):
+        table.move_to(10.0, 10.0)  # a slew that worked reads as refused: say so loudly rather than guess
+    sim.altitude.trip_limit("high")
+    with pytest.raises(DeviceFault, match="stopped at"):
+        table.move_to(10.0, 20.0)  # INDI's "0" = fault reads as "no fault": the arrival check catches it
