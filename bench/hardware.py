@@ -36,7 +36,7 @@ from drivers.shutter import ThorlabsSC10
 from drivers.sim.bench import SimBench
 from drivers.sources import ArcLampSource, LedSource
 from drivers.thorlabs_apt import AptRotationStage
-from drivers.transport import open_port
+from drivers.transport import DEFAULT_RETRIES, open_port
 
 from .benchfile import BenchFile
 
@@ -48,6 +48,10 @@ SMC100_SERIAL = {"baudrate": 57600, "xonxoff": True}  # drivers/newport_smc100.p
 CMOS_BAUDRATE = 921600  # RS-485 adapter of the module (drivers/cmos_sensor.py)
 APT_DWELL_S = 0.05  # RTS-cycle dwell of the APT init on hardware (anchors-protocols §2.1)
 SMC100_RESET_WAIT_S = 1.0  # wait after RS before the controller answers (pymeasure)
+
+#: Every device link on the bench retries a garbled, cut or late reply this often (idempotent commands only;
+#: drivers.transport.ask_again), then raises a typed error naming the device.
+LINK_RETRIES = DEFAULT_RETRIES
 
 
 class BenchConnectionError(DeviceError):
@@ -159,7 +163,8 @@ class _Connector:
                 # slew_reply="auto": a mount that answers :MA# as the Meade manual says or as INDI expects (the
                 # simulator's indi_compatible mode) both work; the slew is judged by what the mount does
                 table = LX200Table(port, Limits(*config.azimuth_limits_deg), Limits(*config.zenith_limits_deg),
-                                   high_precision=config.high_precision, slew_reply="auto")
+                                   high_precision=config.high_precision, slew_reply="auto",
+                                   retries=LINK_RETRIES)
                 table.connect()
             self.where["table"] = url
             return table  # an alt-az mount has no homing: its position is absolute
@@ -201,7 +206,7 @@ class _Connector:
                     ports[url] = open_port(url, timeout_s=axis.timeout_s, **SMC100_SERIAL)
                     self.closers.append(ports[url].close)
                 stage = Smc100Axis(ports[url], address=axis.address, limits=Limits(*axis.limits_deg),
-                                   reset_wait_s=0.0 if simulated else SMC100_RESET_WAIT_S)
+                                   reset_wait_s=0.0 if simulated else SMC100_RESET_WAIT_S, retries=LINK_RETRIES)
                 stage.identify()  # the constructor sends nothing: make a silent axis fail here, named
             axes.append(stage)
         return axes
@@ -222,13 +227,13 @@ class _Connector:
             with _connecting("lamp", url):
                 port = open_port(url, baudrate=ORIEL_BAUDRATE, timeout_s=config.timeout_s)
                 self.closers.append(port.close)
-                supply = Oriel69907(port, max_current_a=config.max_current_a, clock=clock)
+                supply = Oriel69907(port, max_current_a=config.max_current_a, clock=clock, retries=LINK_RETRIES)
                 supply.identify()  # a silent supply fails here, named, rather than at the first lamp_on
             url, _ = self.url(config.shutter_url, "shutter")
             with _connecting("shutter", url):
                 port = open_port(url, baudrate=SC10_BAUDRATE, timeout_s=config.timeout_s)
                 self.closers.append(port.close)
-                shutter = ThorlabsSC10(port)
+                shutter = ThorlabsSC10(port, retries=LINK_RETRIES)
                 shutter.configure()  # manual mode: `ens` then opens and closes the shutter
             self.where["source"] = f"{supply.port.name}, {url}"
             return ArcLampSource(supply, shutter, current_a=config.current_a, warmup_s=warmup_s)
@@ -238,7 +243,7 @@ class _Connector:
             port = open_port(url, timeout_s=config.timeout_s, **E363XA_SERIAL)
             self.closers.append(port.close)
             supply = ScpiSupply(port, max_current_a=config.max_current_a, max_voltage_v=config.max_voltage_v,
-                                output=config.output, clock=clock)
+                                output=config.output, clock=clock, retries=LINK_RETRIES)
             supply.remote()  # the E363xA takes RS-232 commands only in remote mode
             self.where["source"] = url
             return LedSource(supply, config.current_a, voltage_v=config.voltage_v, warmup_s=warmup_s)

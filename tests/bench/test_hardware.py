@@ -141,3 +141,18 @@ def test_a_bad_url_names_the_role_and_closes_what_was_opened(monkeypatch, device
     assert _registered() == before  # the simulators are unregistered
     assert opened  # the azimuth stage at least was open when the failure came
     assert all(not port.raw.is_open for port in opened)  # and every port opened before is closed
+
+
+@pytest.mark.parametrize("table, source", [("apt", "xenon"), ("smc100", "led"), ("lx200", "xenon")])
+def test_every_link_of_the_bench_retries_a_bad_reply_the_same_bounded_number_of_times(table, source):
+    """Issue 10, item 10: one garbled or late reply does not fail a run on any link (drivers.transport)."""
+    from drivers.transport import DEFAULT_RETRIES
+
+    devices = connect_bench(parse_bench_file({"simulation": {"table": table, "source": source}}), time_scale=0.0)
+    try:
+        t = devices.table
+        links = [t] if table == "lx200" else [t.azimuth, t.zenith]
+        links += [devices.source.supply, devices.sensor] + ([devices.source.shutter] if source == "xenon" else [])
+        assert [link.retries for link in links] == [DEFAULT_RETRIES] * len(links), [type(x).__name__ for x in links]
+    finally:
+        devices.close()
