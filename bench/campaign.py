@@ -6,7 +6,8 @@ seed 003 procedure with every field spelled out.
 
 from __future__ import annotations
 
-from typing import Literal
+from types import UnionType
+from typing import Literal, Union, get_args, get_origin
 
 import numpy as np
 
@@ -28,6 +29,21 @@ MAX_LIST = 500
 MAX_SENSORS = 100
 
 
+def bool_for_a_number(annotation, value) -> bool:
+    """Whether `value` holds a JSON true/false where `annotation` wants a number: itself, an element of a
+    tuple or list, a value of a mapping, or an optional number (pydantic would take it for 1 or 0)."""
+    if annotation in (int, float):
+        return isinstance(value, bool)
+    origin, args = get_origin(annotation), get_args(annotation)
+    if origin in (Union, UnionType):
+        return any(bool_for_a_number(a, value) for a in args if a is not type(None))
+    if origin in (tuple, list) and args and isinstance(value, (list, tuple)):
+        return any(bool_for_a_number(args[0], v) for v in value)
+    if origin is dict and len(args) == 2 and isinstance(value, dict):
+        return any(bool_for_a_number(args[1], v) for v in value.values())
+    return False
+
+
 class _Strict(BaseModel):
     # no NaN or infinity anywhere (`start_ms: .inf` is not an exposure)
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
@@ -35,13 +51,9 @@ class _Strict(BaseModel):
     @field_validator("*", mode="before")
     @classmethod
     def _no_bool_for_a_number(cls, value, info):
-        # JSON's true is not the number 1: refuse it where a number is expected
-        annotation = cls.model_fields[info.field_name].annotation
-        if isinstance(value, bool) and annotation in (int, float):
+        # JSON's true is not the number 1: refuse it where a number is expected, also in a list or a mapping
+        if bool_for_a_number(cls.model_fields[info.field_name].annotation, value):
             raise ValueError("must be a number, not true/false")
-        if isinstance(value, (list, tuple)) and any(isinstance(v, bool) for v in value) \
-                and annotation in (tuple[float, ...], tuple[int, ...]):
-            raise ValueError("must be numbers, not true/false")
         return value
 
 

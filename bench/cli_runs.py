@@ -365,6 +365,9 @@ def serve_command(
     port: int = typer.Option(8000, help="TCP port."),
     time_scale: Optional[float] = TimeScaleOption,
     public_read: bool = typer.Option(False, "--public-read", help="Let read-only views work without the token."),
+    allowed_host: Optional[list[str]] = typer.Option(
+        None, "--allowed-host", help="Another name the server answers to (besides 127.0.0.1, localhost, [::1] and "
+                                     "--host); repeatable. Requests naming any other host get 400 (DNS rebinding)."),
 ) -> None:
     """Serve the bench's web API (OpenAPI at /docs); commands need the token printed at first start."""
     from web.app import create_app
@@ -378,7 +381,8 @@ def serve_command(
     token_file = escape(str(default_config_dir() / "token"))
     if created:  # shown once; it stays in the user's config directory
         out.print(f"API token (created now, kept in {token_file}): [bold]{token}[/]", soft_wrap=True)
-    settings = WebSettings(host=host, port=port, public_read=public_read, token=token)
+    settings = WebSettings(host=host, port=port, public_read=public_read, token=token,
+                           allowed_hosts=tuple(allowed_host or ()))
     bench_file = load_bench_file(bench) if bench else BenchFile()
     with _catalogue(catalogue) as cat:
         service = BenchService(bench_file, cat, time_scale=time_scale).start()

@@ -34,13 +34,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calibration.centroid import CentroidError, find_spot
+from calibration.centroid import CentroidError, SpotFlag, find_spot
 from calibration.geometry import incidence_from_stage_angle
 from drivers.errors import DeviceFault, DeviceTimeout
 
 from .messages import (Capture, Checkpoint, CloseShutter, LampOn, Log, Measure, MayStopEarly, Move, OpenShutter, Plan,
                        Reading, Record, SetExposure, WaitWarm)
 from .preflight import TimingModel, timing_from_motion
+
+#: Spot flags of a spot cut by the frame's edge: its centre is biased, so it is recorded but never fitted
+#: (bench.runner.bench_data)
+EDGE_FLAGS = int(SpotFlag.NEAR_EDGE | SpotFlag.ROI_CLIPPED)
 
 #: A move faults once it has lasted this many times its expected duration plus the margin [s]: the margin
 #: covers settling, the controller's own start-up and a table slower than its reported speed.
@@ -574,6 +578,7 @@ class RunEngine:
             return None
         if isinstance(msg, Record):
             self.catalogue.set_run_value(self._run_id, msg.key, msg.value)
+            self._emit("record", key=msg.key, value=msg.value)  # a stage's result (the exposure, the centre …)
             return None
         if isinstance(msg, Log):
             self.catalogue.log_event(self._run_id, "log", msg.message)
@@ -722,15 +727,19 @@ class RunEngine:
                 continue  # the checkpoint pauses or suspends; the point starts over
             zenith, azimuth = self.body_direction(point)
             readings = [dataclasses.replace(r, zenith_deg=zenith, azimuth_body_deg=azimuth) for r in readings]
-            self._record(point, readings, started)
+            exposure = self._exposure()
+            self._record(point, readings, started, exposure)
             self._done.add(point.key)
             self._point_times.append(time.monotonic() - t0)
             done, total = len(self._done), self._progress[1]
             mean = float(np.mean(self._point_times[-20:]))
+            good = [r for r in readings if r.ok]
             self._emit("point", key=point.key, stage=point.stage, azimuth_deg=point.azimuth_deg,
-                       zenith_stage_deg=point.zenith_stage_deg, index=done, total=total,
-                       eta_s=max(total - done, 0) * mean,
-                       spots=[(r.x_px, r.y_px) for r in readings if r.ok])
+                       zenith_stage_deg=point.zenith_stage_deg, zenith_deg=zenith, azimuth_body_deg=azimuth,
+                       exposure_ms=exposure, index=done, total=total, eta_s=max(total - done, 0) * mean,
+                       spots=[(r.x_px, r.y_px) for r in good], n_frames=len(readings),
+                       # a spot cut by the frame's edge is recorded but never fitted (bench.runner.bench_data)
+                       spots_clipped=[bool(r.flags & EDGE_FLAGS) for r in good])
             return readings
 
     def _recorded(self, key: str):
@@ -755,7 +764,7 @@ class RunEngine:
                                                  geometry.source_distance_mm))
         return abs(theta), float(np.mod(point.azimuth_deg + (180.0 if theta < 0 else 0.0), 360.0))
 
-    def _record(self, point, readings, started) -> None:
+    def _record(self, point, readings, started, exposure_ms: float | None) -> None:
         zenith, azimuth_body = self.body_direction(point)
         paths = self._save_frames(point, readings)
         rows = [{"repeat": r.repeat, "x_px": None if not r.ok else r.x_px, "y_px": None if not r.ok else r.y_px,
@@ -764,7 +773,7 @@ class RunEngine:
                 for r in readings]
         self.catalogue.record_point(self._run_id, point.key, stage=point.stage, azimuth_deg=point.azimuth_deg,
                                     zenith_stage_deg=point.zenith_stage_deg, zenith_deg=zenith,
-                                    azimuth_body_deg=azimuth_body, exposure_ms=self._exposure(),
+                                    azimuth_body_deg=azimuth_body, exposure_ms=exposure_ms,
                                     readings=rows, started_utc=started)
 
     def _exposure(self) -> float | None:

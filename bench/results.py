@@ -1,7 +1,10 @@
 """What a run's results look like through its calibrations: mean spots per point and residuals per point.
 
 The dashboard draws these (spot map, zenith against radius, residuals); they are computed here, with the
-calibration core, so ``web/`` holds no science.
+calibration core, so ``web/`` holds no science. So is which points the fit left out, and why: a point whose
+every spot was clipped at the detector's edge (:func:`bench.runner.bench_data` never fits those), or whose
+every frame the calibration rejected (its document's ``rejected``, ``row`` = reading id). Table 4.1 is
+computed without them; a plot that drew them as the others would show a worst point the table does not have.
 """
 
 from __future__ import annotations
@@ -13,25 +16,53 @@ import numpy as np
 from calibration.geometry import angular_error_deg, azimuth_measured_deg, spot_radius_px, wrap_deg
 from calibration.models import calibration_from_dict
 
+from .runner import EDGE_REASON, clipped, has_spot
+
 
 class NoCalibration(LookupError):
     """The run has no calibration of the method asked for."""
 
 
-def point_means(catalogue, run_id: int) -> list[dict]:
-    """The run's points in recording order, each with `n_ok` and the mean spot (`x_px`, `y_px`) of its good
-    readings (None when it has none)."""
+def _mean_spots(catalogue, run_id: int, rejected: dict[int, str]) -> list[dict]:
+    """The run's points in recording order, each with the mean spot of the frames a fit uses, and what was
+    left out: frames clipped at the detector's edge, and those in `rejected` (reading id → reason)."""
     catalogue.run(run_id)  # "no run N" rather than an empty list
-    spots = defaultdict(list)
+    readings = defaultdict(list)
     for reading in catalogue.readings(run_id):
-        if reading["status"] == "ok" and reading["x_px"] is not None:
-            spots[reading["point_id"]].append((reading["x_px"], reading["y_px"]))
+        if has_spot(reading):
+            readings[reading["point_id"]].append(reading)
     points = []
     for point in catalogue.points(run_id):
-        good = spots.get(point["id"], [])
-        mean = [sum(c) / len(good) for c in zip(*good)] if good else [None, None]
-        points.append({**point, "n_ok": len(good), "x_px": mean[0], "y_px": mean[1]})
+        spots = readings.get(point["id"], [])
+        left_out = [{"reading_id": r["id"], "reason": EDGE_REASON if clipped(r) else rejected[r["id"]]}
+                    for r in spots if clipped(r) or r["id"] in rejected]
+        out = {entry["reading_id"] for entry in left_out}
+        used = [r for r in spots if r["id"] not in out]
+        # a point left out whole is drawn where its spots were, marked as left out
+        mean_of = used or spots
+        mean = ([sum(r[c] for r in mean_of) / len(mean_of) for c in ("x_px", "y_px")] if mean_of else [None, None])
+        reasons = list(dict.fromkeys(entry["reason"] for entry in left_out))
+        points.append({**point, "n_ok": len(spots), "x_px": mean[0], "y_px": mean[1],
+                       "excluded": "; ".join(reasons) if spots and not used else None, "frames_left_out": left_out})
     return points
+
+
+def point_means(catalogue, run_id: int) -> list[dict]:
+    """The run's points in recording order, each with `n_ok` (frames with a spot) and the mean spot (`x_px`,
+    `y_px`) of those the fits use (None when it has no spot at all). A point whose every spot was clipped at
+    the detector's edge is left out of every fit: its mean is of those spots, and `excluded` says why
+    (None for the others); `frames_left_out` lists each clipped frame (`reading_id`, `reason`)."""
+    return _mean_spots(catalogue, run_id, {})
+
+
+def rejected_readings(document: dict) -> dict[int, str]:
+    """The frames a calibration rejected as outliers, by reading id (the document's ``rejected`` rows), with
+    the reason of each; frames without a row (older or CSV-fitted documents) cannot be placed and are left."""
+    out = {}
+    for entry in document.get("rejected") or []:
+        if isinstance(entry, dict) and isinstance(entry.get("row"), int):
+            out.setdefault(entry["row"], str(entry.get("reason") or "rejected as an outlier"))
+    return out
 
 
 def _finite(values) -> list:
@@ -41,16 +72,20 @@ def _finite(values) -> list:
 def fit_residuals(catalogue, run_id: int, method: str | None = None) -> dict:
     """Each point with a spot, seen through one calibration (default: the chosen one): its radius and its
     measured azimuth about the calibration's centre (seed 003 eqs. 7, 10), the direction the calibration gives
-    and the residuals (eq. 13).
+    and the residuals (eq. 13). The mean spot is of the frames the fit used; a point the fit left out whole
+    (every spot clipped at the detector's edge, or every frame rejected by this calibration) keeps the mean of
+    its spots and says why in `excluded`; `frames_left_out` names each frame left out of the point.
 
     Raises :class:`NoCalibration` when the run has no such calibration; the calibration's own format errors
     (:class:`calibration.errors.CalibrationFormatError`) pass through.
     """
-    points = [p for p in point_means(catalogue, run_id) if p["x_px"] is not None]
+    catalogue.run(run_id)
     matches = [c for c in catalogue.calibrations(run_id) if (c["method"] == method if method else c["chosen"])]
     if not matches:
         raise NoCalibration(f"run {run_id} has no {method or 'chosen'} calibration")
     record = matches[-1]
+    points = [p for p in _mean_spots(catalogue, run_id, rejected_readings(record["document"]))
+              if p["x_px"] is not None]
     calibration = calibration_from_dict(record["document"])
     x0, y0 = float(calibration.x0_px), float(calibration.y0_px)
     x = np.array([p["x_px"] for p in points], dtype=float)
@@ -67,10 +102,11 @@ def fit_residuals(catalogue, run_id: int, method: str | None = None) -> dict:
         radius = azimuth_spot = zenith_fit = azimuth_fit = error = np.empty(0)
     columns = zip(points, radius, azimuth_spot, _finite(zenith_fit), _finite(azimuth_fit),
                   _finite(zenith_fit - zenith), _finite(wrap_deg(azimuth_fit - azimuth)), _finite(error), strict=True)
-    data = [{"id": p["id"], "stage": p["stage"], "zenith_deg": p["zenith_deg"], "azimuth_deg": p["azimuth_body_deg"],
-             "x_px": p["x_px"], "y_px": p["y_px"], "radius_px": float(r), "azimuth_spot_deg": float(a),
-             "zenith_fit_deg": zf, "azimuth_fit_deg": af, "zenith_residual_deg": dz, "azimuth_residual_deg": da,
-             "error_deg": e}
+    data = [{"id": p["id"], "key": p["key"], "stage": p["stage"], "zenith_deg": p["zenith_deg"],
+             "azimuth_deg": p["azimuth_body_deg"], "x_px": p["x_px"], "y_px": p["y_px"], "radius_px": float(r),
+             "azimuth_spot_deg": float(a), "zenith_fit_deg": zf, "azimuth_fit_deg": af, "zenith_residual_deg": dz,
+             "azimuth_residual_deg": da, "error_deg": e, "excluded": p["excluded"],
+             "frames_left_out": p["frames_left_out"]}
             for p, r, a, zf, af, dz, da, e in columns]
     return {"run_id": run_id, "method": record["method"], "chosen": bool(record["chosen"]), "x0_px": x0,
             "y0_px": y0, "data": data, "count": len(data)}

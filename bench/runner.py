@@ -12,7 +12,6 @@ from importlib import metadata
 
 import numpy as np
 
-from calibration.centroid import SpotFlag
 from calibration.data import BenchData
 from calibration.design import DEFAULT_SENSOR
 from calibration.evaluation import StageFrames, calibrate
@@ -20,7 +19,7 @@ from calibration.stage_geometry import GeometryPrior
 from .campaign import Campaign
 from .catalogue import LIVE_RUN_STATUSES
 from .datafile import calibration_document
-from .engine import Interlocks, RunEngine
+from .engine import EDGE_FLAGS, Interlocks, RunEngine
 from .plans import alignment_violations, make_plan, procedure_auto_exposure
 from .preflight import PreflightReport, TimingModel, preflight, timing_from_table
 
@@ -99,16 +98,27 @@ def check_campaign(campaign: Campaign, session: Session) -> PreflightReport:
     return dataclasses.replace(report, duration_s=report.duration_s * len(campaign.sensors))
 
 
+#: Why such a frame is left out of the fit, in words (the result plots say it)
+EDGE_REASON = "spot clipped at the detector's edge"
+
+
+def has_spot(reading: dict) -> bool:
+    """A reading of the catalogue whose centroid was found."""
+    return reading["status"] == "ok" and reading["x_px"] is not None
+
+
+def clipped(reading: dict) -> bool:
+    """A reading whose spot touches the frame's edge (:data:`EDGE_FLAGS`): recorded, never fitted."""
+    return bool((reading["flags"] or 0) & EDGE_FLAGS)
+
+
 def bench_data(catalogue, run_ids, *, sensor_id: str | None = None) -> BenchData:
     """The bench data of runs: one point per good frame, true angles from the bench geometry (seed 003 eq. 8).
 
     Frames whose centroid failed, or whose spot touches the frame's edge (a clipped spot's centre is
     biased), stay in the catalogue but are left out.
     """
-    # a spot cut by the frame's edge has a biased centre: recorded, but not fitted
-    unusable = int(SpotFlag.NEAR_EDGE | SpotFlag.ROI_CLIPPED)
-    rows = [r for r in catalogue.readings(run_ids)
-            if r["status"] == "ok" and r["x_px"] is not None and not (r["flags"] or 0) & unusable]
+    rows = [r for r in catalogue.readings(run_ids) if has_spot(r) and not clipped(r)]
     if not rows:
         from calibration.errors import InsufficientDataError
         raise InsufficientDataError(f"runs {list(run_ids)} recorded no usable frame")

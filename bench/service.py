@@ -242,7 +242,8 @@ class BenchService:
         self._mount: dict | None = None  # the sensor mount the worker waits for the operator to confirm
         self._mount_answer: bool | None = None
         self._stop = threading.Event()
-        self._status: dict = {"engine": {"state": EngineState.IDLE.value}, "updated_utc": None}
+        self._status: dict = {"engine": {"state": EngineState.IDLE.value}, "bench": self.bench_info(),
+                              "updated_utc": None}
         self._status_published = 0.0  # when the engine's readings were last published as a "status" event
         self._frame: np.ndarray | None = None
         self._frame_spot: tuple[np.ndarray, dict] | None = None  # (frame, its spot), found when first asked for
@@ -276,6 +277,20 @@ class BenchService:
             if thread.is_alive():
                 thread.join(timeout=30)
         self.session.close()
+
+    def bench_info(self) -> dict:
+        """Whether the bench is simulated, and its time scale (bench seconds per wall-clock second; 0: every wait
+        is skipped) when it is: a dashboard must never let a simulated bench pass for the real one."""
+        sim = self.session.devices.sim
+        return {"simulated": sim is not None, "time_scale": float(sim.world.clock.time_scale) if sim else None}
+
+    def wall_time_s(self, bench_time_s: float) -> float | None:
+        """How long `bench_time_s` of bench time takes on the wall clock: the same on a real bench, divided by
+        the time scale on a simulated one; None when the simulation skips every wait (time scale 0)."""
+        scale = self.bench_info()["time_scale"]
+        if scale is None:
+            return bench_time_s
+        return bench_time_s / scale if scale > 0 else None
 
     # -- campaigns ----------------------------------------------------------------------------------
     def dry_run(self, campaign: Campaign):

@@ -3,14 +3,18 @@
 The app only enqueues commands to the :class:`~bench.service.BenchService` and reads its status and its
 catalogue; it holds no science. Errors of the layers below map to HTTP here, once, so routes stay thin:
 an illegal engine transition or a busy bench is 409, a limit or a preflight refusal is 422, an unknown
-catalogue id is 404.
+catalogue id is 404. Every request first passes :class:`web.guard.Guard` (host check, body limit, security
+headers).
 """
 
 from __future__ import annotations
 
+import math
 from contextlib import asynccontextmanager
 
 from fastapi import FastAPI, Request
+from fastapi.encoders import jsonable_encoder
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from fastapi.routing import APIRoute
 
@@ -19,7 +23,9 @@ from bench.engine import IllegalTransition
 from bench.runner import PreflightRefused, ResumeRefused
 from drivers.errors import LimitError
 
-from .routes import campaigns, commands, downloads, events, fits, pages, run, runs, status
+from .guard import Guard
+from .idempotency import IdempotencyKeys
+from .routes import campaigns, commands, docs, downloads, events, fits, pages, run, runs, status
 from .server import Shutdown
 from .settings import WebSettings
 
@@ -44,7 +50,24 @@ def _detail(status_code: int, detail) -> JSONResponse:
     return JSONResponse({"detail": detail}, status_code=status_code)
 
 
+def _json_safe(value):
+    """`value` with every non-finite float as its name: a refused NaN must not make the refusal unencodable."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    return value
+
+
 def _install_error_handlers(app: FastAPI) -> None:
+    @app.exception_handler(RequestValidationError)
+    async def _invalid(request: Request, exc: RequestValidationError):
+        # FastAPI's own handler echoes each error's input, and a NaN there (Python's JSON reader takes `NaN`)
+        # made the 422 itself fail as a 500
+        return _detail(422, _json_safe(jsonable_encoder(exc.errors())))
+
     @app.exception_handler(IllegalTransition)  # BenchBusy is one too
     async def _conflict(request: Request, exc: IllegalTransition):
         return _detail(409, str(exc))
@@ -67,6 +90,14 @@ def _install_error_handlers(app: FastAPI) -> None:
         return _detail(404 if message.startswith("no ") else 409, message)
 
 
+class BenchApp(FastAPI):
+    """FastAPI with :class:`~web.guard.Guard` around its whole middleware stack, so that even the answer of its
+    server-error handler (a 500) carries the security headers."""
+
+    def build_middleware_stack(self):
+        return Guard(super().build_middleware_stack(), self.state.settings)
+
+
 def create_app(service, *, settings: WebSettings) -> FastAPI:
     """Build the API around a started bench service.
 
@@ -87,13 +118,16 @@ def create_app(service, *, settings: WebSettings) -> FastAPI:
         yield
         shutdown.set()  # closes the event streams, so the server does not wait on them to stop
 
-    app = FastAPI(title="sunbench", summary="Sun-sensor calibration bench", version="1",
-                  openapi_tags=TAGS, generate_unique_id_function=_operation_id, lifespan=lifespan)
+    # /docs is served from the installed Swagger UI (web/routes/docs.py), not FastAPI's CDN page; no /redoc
+    app = BenchApp(title="sunbench", summary="Sun-sensor calibration bench", version="1",
+                   openapi_tags=TAGS, generate_unique_id_function=_operation_id, lifespan=lifespan,
+                   docs_url=None, redoc_url=None)
     app.state.service = service
     app.state.settings = settings
     app.state.shutdown = shutdown
+    app.state.idempotency = IdempotencyKeys()
     _install_error_handlers(app)
-    for module in (status, commands, campaigns, run, runs, fits, downloads, events):
+    for module in (status, commands, campaigns, run, runs, fits, downloads, events, docs):
         app.include_router(module.router)
     pages.install(app)  # the dashboard: /, /launch, /run, /results, /fleet and /static
     return app

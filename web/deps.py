@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Annotated
 
-from fastapi import Depends, Request
+from fastapi import Depends, Path, Query, Request
 
 from bench.catalogue import Catalogue
 from bench.service import BenchService
@@ -51,6 +51,16 @@ def subscribe_events(encode: Callable[[dict], object] | None = None):
 
     return subscription
 
+
+#: The largest id the catalogue can hold (SQLite's INTEGER): a larger one is refused as a 422 naming the parameter,
+#: not passed on to overflow in the database
+MAX_ID = 2**63 - 1
+
+#: ids in paths and queries, each bounded 1 … 2⁶³−1
+RunId = Annotated[int, Path(ge=1, le=MAX_ID, description="A run's id")]
+CampaignId = Annotated[int, Path(ge=1, le=MAX_ID, description="A campaign's id")]
+CampaignFilter = Annotated[int | None, Query(ge=1, le=MAX_ID, description="Only this campaign's")]
+AfterId = Annotated[int, Query(ge=0, le=MAX_ID, description="The id of the last event the client saw (0: none)")]
 
 ServiceDep = Annotated[BenchService, Depends(get_service)]
 CatalogueDep = Annotated[Catalogue, Depends(get_catalogue)]

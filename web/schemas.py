@@ -57,8 +57,15 @@ class MountPublic(_Out):
     prompt: str = Field(description="What to do, in words")
 
 
+class BenchPublic(_Out):
+    simulated: bool = Field(description="The devices are simulated: nothing real moves, lights or measures")
+    time_scale: float | None = Field(None, description="Of a simulated bench: bench seconds per wall-clock second "
+                                                       "(100: a bench hour takes 36 s; 0: every wait is skipped)")
+
+
 class StatusPublic(_Out):
     engine: EnginePublic
+    bench: BenchPublic | None = None
     mount: MountPublic | None = Field(None, description="The sensor mount awaited (POST /api/run/mount), if any")
     table: TablePublic | None = None
     source: dict[str, Any] | None = None
@@ -75,25 +82,27 @@ class SpotPublic(_Out):
 
 
 # -- commands ---------------------------------------------------------------------------------------------
-class JogCommand(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    azimuth_deg: float
-    zenith_deg: float
+class _Command(BaseModel):
+    # strict: a number is a JSON number (never true, "10" or NaN), a switch is true or false (never 1 or "yes")
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
 
-class LampCommand(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    on: bool
+class JogCommand(_Command):
+    azimuth_deg: float = Field(description="Azimuth of the table to go to [°]")
+    zenith_deg: float = Field(description="Zenith stage angle to go to [°]")
 
 
-class ShutterCommand(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+class LampCommand(_Command):
+    on: bool = Field(description="true: lamp on; false: standby (the shutter closes)")
+
+
+class ShutterCommand(_Command):
     open: bool
 
 
-class MountConfirm(BaseModel):
-    model_config = ConfigDict(extra="forbid")
-    sensor_id: str = Field(min_length=1, description="The sensor the operator mounted: the one the bench awaits")
+class MountConfirm(_Command):
+    sensor_id: str = Field(min_length=1, max_length=200,
+                           description="The sensor the operator mounted: the one the bench awaits")
 
 
 # -- campaigns --------------------------------------------------------------------------------------------
@@ -101,9 +110,16 @@ class DryRunPublic(_Out):
     points: int = Field(description="Points per sensor (at most this many when `upper_bound`)")
     frames: int = Field(description="Frames per sensor, the probes included (at most, when `upper_bound`)")
     moves: int = Field(description="Table moves per sensor (at most, when `upper_bound`)")
-    duration_s: float = Field(description="Estimated duration of the whole campaign, every sensor [s] "
-                                          "(at most, when `upper_bound`)")
+    sensors: int = Field(description="Sensors of the campaign")
+    duration_s: float = Field(description="Estimated duration of the whole campaign, every sensor, in bench time "
+                                          "[s] (at most, when `upper_bound`)")
+    duration_per_sensor_s: float = Field(description="Of `duration_s`, each sensor's share [s]")
     warmup_s: float = Field(description="Of `duration_s`, the lamp's warm-up [s]")
+    wall_duration_s: float | None = Field(
+        None, description="`duration_s` on the wall clock [s]: the same on a real bench, bench time / time scale "
+                          "on a simulated one; null when the simulation skips every wait (time scale 0)")
+    simulated: bool = Field(False, description="The bench is simulated")
+    time_scale: float | None = Field(None, description="The simulated bench's time scale (bench s per wall s)")
     upper_bound: bool = Field(description="The plan may stop early (a stopping rule): the counts and the "
                                           "duration are its cap, every point counted")
     upper_bound_reason: str | None = Field(None, description="Why they are upper bounds, in words")
@@ -112,6 +128,8 @@ class DryRunPublic(_Out):
 
 class CampaignQueued(_Out):
     campaign_id: int
+    replayed: bool = Field(False, description="True when an earlier request with the same Idempotency-Key queued "
+                                              "this campaign, and this one queued nothing")
 
 
 class CampaignPublic(_Out):
@@ -173,6 +191,12 @@ class RunsPublic(_Out):
     count: int
 
 
+class LeftOutFramePublic(_Out):
+    reading_id: int
+    reason: str = Field(description="Why the fit left the frame out: \"spot clipped at the detector's edge\", or "
+                                    "the calibration's reason for rejecting it as an outlier")
+
+
 class PointPublic(_Out):
     id: int
     key: str
@@ -185,8 +209,12 @@ class PointPublic(_Out):
     completed_utc: str
     n_readings: int
     n_ok: int = Field(description="Readings with a centroid")
-    x_px: float | None = Field(description="Mean spot centre of the point's good readings [px]")
-    y_px: float | None = Field(description="Mean spot centre of the point's good readings [px]")
+    x_px: float | None = Field(description="Mean spot centre of the point's readings the fits use (of all its "
+                                           "spots when it is `excluded`) [px]")
+    y_px: float | None = Field(description="Mean spot centre, as `x_px` [px]")
+    excluded: str | None = Field(None, description="Why every fit leaves the point out (each of its spots clipped "
+                                                   "at the detector's edge); null when it is fitted")
+    frames_left_out: list[LeftOutFramePublic] = Field([], description="The point's frames no fit uses, and why")
 
 
 class PointsPublic(_Out):
@@ -243,6 +271,10 @@ class CalibrationPublic(_Out):
                                                                          "(absent from older documents)")
     uncertainty_map: UncertaintyMapPublic | None = Field(None, description="Methods with a parameter covariance "
                                                                            "(physical) only")
+    parameters: dict[str, Any] | None = Field(None, description="The fitted parameters as the document holds them "
+                                                                "(names with their unit); `uncertainties` gives the "
+                                                                "1σ of each fitted one (physical models), `fitted` "
+                                                                "their names")
 
 
 class CalibrationsPublic(_Out):

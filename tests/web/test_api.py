@@ -34,7 +34,7 @@ from web.server import BenchServer, RedactToken, Shutdown, serve
 from web.security import load_or_create_token
 from web.settings import WebSettings
 
-from inprocess import AUTH, TOKEN, api_client
+from inprocess import AUTH, TOKEN, api_client, settings_for_tests
 
 SMALL = Campaign(name="small", frames="none", seed003=Seed003Procedure(
     azimuth_step_deg=90.0, repeats=1, centre_repeats=1, tilt_stage=False))
@@ -487,7 +487,7 @@ def test_the_event_stream_delivers_the_points_of_a_running_campaign(client, serv
 def _idle_app(keepalive_s):
     """An app around a bare bus (no status poller: its streams stay idle), and the bus."""
     bus = EventBus()
-    return create_app(SimpleNamespace(bus=bus), settings=WebSettings(token=TOKEN, sse_keepalive_s=keepalive_s)), bus
+    return create_app(SimpleNamespace(bus=bus), settings=settings_for_tests(sse_keepalive_s=keepalive_s)), bus
 
 
 def test_an_idle_stream_sends_keep_alives():

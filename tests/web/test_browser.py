@@ -105,14 +105,14 @@ def _wait_idle(server, timeout_s=60.0):
     raise AssertionError("the bench did not come back to idle")
 
 
-def paste_token(page: Page, token: str) -> None:
+def paste_token(page: Page, token: str, state: str = "token set") -> None:
     """What an engineer does first: open the token box and paste the token `sunbench serve` printed."""
     box = page.locator("#token-box")
     if box.get_attribute("open") is None:
         page.click("#token-box summary")
     page.fill("#token-form input[name=token]", token)
     page.click("#token-form button[type=submit]")
-    expect(page.locator("#token-state")).to_have_text("token set")
+    expect(page.locator("#token-state")).to_have_text(state)
 
 
 def jog_to(page: Page, azimuth_deg: float, zenith_deg: float) -> None:
@@ -128,6 +128,46 @@ def jog_to(page: Page, azimuth_deg: float, zenith_deg: float) -> None:
 def plot_points(page: Page, plot_id: str) -> int:
     """How many markers plotly drew in the plot `plot_id`."""
     return page.locator(f"#{plot_id} .scatterlayer .point").count()
+
+
+FIT_PLOTS = ("spot-plot", "radius-plot", "zenith-residual-plot", "azimuth-plot", "error-plot")
+LEFT_OUT = "left out of the fit"
+
+
+def _left_out_traces(page: Page, plot_id: str) -> list[dict]:
+    """The traces of a plot named as the points the fit left out: their points and hover texts."""
+    return page.evaluate("""id => document.getElementById(id).data
+        .filter(t => t.name === "left out of the fit").map(t => ({n: t.x.length, text: t.text}))""", plot_id)
+
+
+def _expect_left_out(page: Page, left: list[dict]) -> None:
+    """Every result plot draws the points the fit left out in their own trace, with their own marker, named
+    "left out of the fit" in the legend, and each one's hover text says why."""
+    for plot in FIT_PLOTS:
+        shown = [p for p in left if plot != "zenith-residual-plot" or p["zenith_deg"] > 0.5]
+        if plot == "azimuth-plot":
+            shown = [p for p in shown if p["zenith_deg"] >= 5 and p["azimuth_fit_deg"] is not None]
+        traces = _left_out_traces(page, plot)
+        assert [t["n"] for t in traces] == ([len(shown)] if shown else []), plot
+        for trace in traces:
+            texts = sorted(trace["text"])
+            assert texts == sorted(f"{p['key']}<br>left out of the fit: {p['excluded']}" for p in shown), plot
+        if shown:
+            expect(page.locator(f"#{plot} .legendtext", has_text=LEFT_OUT)).to_be_visible()
+            symbol = page.evaluate("""id => document.getElementById(id).data
+                .find(t => t.name === "left out of the fit").marker.symbol""", plot)
+            assert symbol == "x-thin-open", plot
+
+
+def _expect_titles_inside(page: Page) -> None:
+    """No plot's title runs off its card: each title line lies within its plot's drawing."""
+    for plot in (*FIT_PLOTS, "uncertainty-plot"):
+        box = page.evaluate("""id => {
+            const root = document.getElementById(id), svg = root.querySelector(".main-svg").getBoundingClientRect();
+            const title = root.querySelector(".gtitle").getBoundingClientRect();
+            return [title.left - svg.left, title.top - svg.top, svg.right - title.right, svg.bottom - title.bottom];
+        }""", plot)
+        assert min(box) >= 0, (plot, box)
 
 
 # -- the whole way: launcher → live run → results → fleet ---------------------------------------------------
@@ -146,9 +186,14 @@ def test_a_campaign_from_the_launcher_to_its_results(page, server):
     # the lamp's warm-up apart, for every plan; seed 003's figures are what the run will do, not bounds
     assert re.fullmatch(r"\d+ min \d+ s", page.locator("#d-warmup").inner_text())
     expect(page.locator("#d-summary")).to_have_text(re.compile(
-        r"^80 points, \d+ frames, \d+ moves per sensor × 1 sensor\(s\); about [\d.]+ min on the bench "
-        r"\(of which [\d.]+ min lamp warm-up\)$"))
+        r"^80 points, \d+ frames, \d+ moves per sensor × 1 sensor\(s\); about [\d.]+ min of bench time in all "
+        r"\(of which [\d.]+ min lamp warm-up\), about [\d.]+ min of wall time$"))
     expect(page.locator("#d-bound")).to_have_text("")
+    # per sensor and in all, in bench time and on the wall clock: a simulated bench's run takes 1/100 of it
+    expect(page.locator("#d-sensors")).to_have_text("1")
+    expect(page.locator("#d-duration-sensor")).to_have_text(page.locator("#d-duration").inner_text())
+    expect(page.locator("#d-wall")).to_have_text(re.compile(
+        r"^(\d+ min )?\d+ s on this simulated bench \(bench time / time scale 100\)$"))
     page.shots("dry-run")
 
     page.click("#start")
@@ -195,8 +240,24 @@ def test_a_campaign_from_the_launcher_to_its_results(page, server):
     # the chosen physical model's 1σ pointing uncertainty over the field, and the fit's quality in words
     expect(page.locator("#uncertainty-plot .main-svg").first).to_be_visible()
     expect(page.locator("#quality-section")).to_be_visible()
-    # fig. 4.7 draws one line per bench azimuth
-    assert page.locator("#zenith-residual-plot .scatterlayer .trace").count() == 8
+    # fig. 4.7 draws one line per bench azimuth, and the points the fit left out apart
+    run_id = int(page.url.rsplit("=", 1)[1])
+    fit = _api(server, f"/api/runs/{run_id}/fit")
+    left = [p for p in fit["data"] if p["excluded"]]
+    assert left and all(p["excluded"] == "spot clipped at the detector's edge" for p in left)
+    off_axis_left = [p for p in left if p["zenith_deg"] > 0.5]
+    assert page.locator("#zenith-residual-plot .scatterlayer .trace").count() == 8 + bool(off_axis_left)
+    _expect_left_out(page, left)
+    _expect_titles_inside(page)
+    # where the figures come from, and the fitted parameters with their 1σ
+    provenance = page.locator("#provenance")
+    for words in ("Bench configuration hash", "simulated (no real device measured this run)", "Software", "Operator",
+                  "Device: sensor", "SB-CMOS-PINHOLE, serial SIM-0001"):
+        expect(provenance).to_contain_text(words)
+    expect(page.locator("#parameters-heading")).to_have_text(f"Fitted parameters of {chosen.split()[0]}")
+    x0 = page.locator("#parameters tbody tr", has_text="x0_px").locator("td")
+    expect(x0.nth(2)).to_have_text(re.compile(r"^± \d"))
+    assert 0 < float(x0.nth(1).inner_text()) < 640
     page.shots("results")
 
     with page.expect_download() as download:
@@ -248,7 +309,8 @@ def test_a_physical_campaign_from_the_launcher_to_its_results(page, server):
     expect(page.locator("#d-duration")).to_have_text(re.compile(r"^at most \d+ min \d+ s$"))
     expect(page.locator("#d-summary")).to_have_text(re.compile(
         rf"^at most {cap} points, at most \d+ frames, at most \d+ moves per sensor × 1 sensor\(s\); "
-        r"at most [\d.]+ min on the bench \(of which [\d.]+ min lamp warm-up\)$"))
+        r"at most [\d.]+ min of bench time in all \(of which [\d.]+ min lamp warm-up\), at most [\d.]+ min of "
+        r"wall time$"))
     expect(page.locator("#d-bound")).to_contain_text("Upper bounds, every point counted")
     page.shots("physical-dry-run")
 
@@ -284,11 +346,16 @@ def test_a_physical_campaign_from_the_launcher_to_its_results(page, server):
     for plot in ("spot-plot", "radius-plot", "zenith-residual-plot", "azimuth-plot", "error-plot"):
         expect(page.locator(f"#{plot} .main-svg").first).to_be_visible()
         assert plot_points(page, plot) >= 10, plot
-    assert page.locator("#zenith-residual-plot .scatterlayer .trace").count() == 1
+    run_id = int(page.url.rsplit("=", 1)[1])
+    left = [p for p in _api(server, f"/api/runs/{run_id}/fit")["data"] if p["excluded"] and p["zenith_deg"] > 0.5]
+    assert page.locator("#zenith-residual-plot .scatterlayer .trace").count() == 1 + bool(left)
     page.shots("physical-results")
 
     page.goto("/results")
     expect(page.locator("#runs-table tbody tr", has_text="physical").first).to_contain_text(f"{recorded} / at most {cap}")
+    campaign_id = _api(server, f"/api/runs/{run_id}")["campaign_id"]
+    page.goto(f"/fleet?campaign={campaign_id}")  # its point total is a cap there too
+    expect(page.locator("#fleet tbody tr td").nth(4)).to_have_text(f"{recorded} / at most {cap}")
 
 
 # -- a calibration's quality and uncertainty ----------------------------------------------------------------
@@ -346,6 +413,21 @@ def test_the_results_page_shows_the_quality_the_rejected_frames_and_the_uncertai
                 c.update(quality=None, rejected=None, uncertainty_map=None)
         route.fulfill(response=response, json=body)
     page.route(re.compile(r"/api/runs/\d+/calibrations$"), with_quality)
+    # a point the calibration rejected (the fit route says so from the document's `rejected`: tested in
+    # tests/web/test_excluded_points.py), drawn apart with the calibration's reason
+    fits = []
+
+    def with_rejected(route):
+        response = route.fetch()
+        if not response.ok:
+            route.fulfill(response=response)
+            return
+        body = response.json()
+        target = next(p for p in body["data"] if not p["excluded"] and p["zenith_deg"] > 20)
+        target["excluded"] = rejected[0]["reason"]
+        fits.append(body)
+        route.fulfill(response=response, json=body)
+    page.route(re.compile(r"/api/runs/\d+/fit\?method=.*$"), with_rejected)
 
     page.goto("/results")
     paste_token(page, server[1])
@@ -359,6 +441,9 @@ def test_the_results_page_shows_the_quality_the_rejected_frames_and_the_uncertai
     cells = len(umap["zenith_deg"]) * len(umap["azimuth_deg"])
     assert page.locator("#uncertainty-plot .barlayer .point").count() == cells
     expect(page.locator("#uncertainty-plot .colorbar")).to_contain_text("1σ pointing uncertainty [°]")
+    left = [p for p in fits[-1]["data"] if p["excluded"]]
+    assert {p["excluded"] for p in left} >= {"6.3 px from the model"}
+    _expect_left_out(page, left)
     page.shots("quality-and-uncertainty")
 
     # a document without them (an older one, or a polynomial fit's map): no box, no table, no map
@@ -463,7 +548,7 @@ def test_without_the_token_the_launcher_asks_for_it_and_refuses_bad_campaigns(pa
     _, token = server
     page.goto("/launch")
     page.click("#dry-run")
-    expect(page.locator("#message")).to_contain_text("401")
+    expect(page.locator("#message")).to_contain_text("no token: paste the token")
     expect(page.locator("#token-box")).to_have_attribute("open", "")
     page.shots("no-token")
 
@@ -493,9 +578,24 @@ def test_pause_resume_and_abort_from_the_live_run_page(page, server):
     page.goto("/run")
     expect(page.locator("#stream-state")).to_have_text("connected")
     expect(page.locator("#engine-state")).to_have_text("running")
+    # Pause only while running, Resume only while paused
+    expect(page.locator("#pause")).to_be_enabled()
+    expect(page.locator("#resume")).to_be_disabled()
+    expect(page.locator("#abort")).to_be_enabled()
+    # each point as it lands: its stage, angles, exposure, spots; the latest frame; a log line per point and
+    # per stage result
+    expect(page.locator("#n-table")).to_have_text(re.compile(r"^azimuth -?\d+\.\d{3}°, zenith stage -?\d+\.\d{3}°$"))
+    expect(page.locator("#n-exposure")).to_have_text(re.compile(r"^\d+\.\d{3} ms$"))
+    expect(page.locator("#n-stage")).not_to_have_text("–")
+    expect(page.locator("#n-spots")).to_contain_text(" px")
+    expect(page.locator("#frame-text")).to_contain_text("spot at (")
+    expect(page.locator("#log li.point").first).to_contain_text("→ (")
+    expect(page.locator("#log li.result", has_text="centre (normal incidence) at (")).to_have_count(1, timeout=30_000)
 
     page.click("#pause")
     expect(page.locator("#engine-state")).to_have_text("paused")
+    expect(page.locator("#pause")).to_be_disabled()
+    expect(page.locator("#resume")).to_be_enabled()
     index = page.eval_on_selector("#progress", "p => p.value")
     time.sleep(1.0)  # 100 s of bench time: a running campaign would have recorded points meanwhile
     assert page.eval_on_selector("#progress", "p => p.value") == index
@@ -503,12 +603,15 @@ def test_pause_resume_and_abort_from_the_live_run_page(page, server):
 
     page.click("#resume")
     expect(page.locator("#engine-state")).to_have_text("running")
-    page.wait_for_function(f"document.querySelector('#progress').value > {index}")
+    # a function, not an expression: Playwright evaluates an expression with eval, which the pages' CSP forbids
+    page.wait_for_function(f"() => document.querySelector('#progress').value > {index}")
 
     page.once("dialog", lambda dialog: dialog.accept())  # "Abort the run? Its recorded points stay."
     page.click("#abort")
     expect(page.locator("#log")).to_contain_text("finished: aborted")
     expect(page.locator("#engine-state")).to_have_text("idle")
+    for button in ("#pause", "#resume", "#abort"):
+        expect(page.locator(button)).to_be_disabled()
     page.shots("aborted")
     page.click("#result-link a")
     expect(page.locator("#run-info")).to_contain_text("aborted")
@@ -526,8 +629,9 @@ def test_with_public_read_the_pages_show_without_the_token_and_commands_still_as
             expect(page.locator("#token-state")).to_have_text("no token")
             expect(page.locator("#s-engine")).to_have_text(re.compile(r"^idle"))  # the status, read freely
             expect(page.locator("#s-az")).to_have_text(re.compile(r"^-?\d+\.\d{3}°$"))
+            expect(page.locator("#bench-banner")).to_contain_text("Simulated bench")
             page.click("#lamp-on")
-            expect(page.locator("#message")).to_contain_text("Refused: 401")
+            expect(page.locator("#message")).to_contain_text("no token: paste the token")
             expect(page.locator("#s-lamp")).to_have_text("off")  # nothing was lit
             shots("bench-refused")
 
@@ -537,7 +641,7 @@ def test_with_public_read_the_pages_show_without_the_token_and_commands_still_as
             page.click("#dry-run")
             expect(page.locator("#d-nviol")).to_have_text("none")  # a dry run reads, it moves nothing
             page.click("#start")
-            expect(page.locator("#message")).to_contain_text("Refused: 401")
+            expect(page.locator("#message")).to_contain_text("no token: paste the token")
             expect(page.locator("#started")).to_have_text("")
             shots("launch-refused")
         finally:
@@ -592,8 +696,13 @@ def test_a_stopped_run_resumes_from_the_live_run_page(page, server):
     (run,) = [r for r in _api(server, "/api/runs")["data"] if r["campaign_id"] == campaign_id]
     assert run["status"] == "aborted" and _campaign_status(server, campaign_id) == "aborted"
 
-    page.goto(f"/fleet?campaign={campaign_id}")
+    page.goto(f"/results?run={run['id']}")
     paste_token(page, token)
+    # the results page offers it too, and leads to the live run page of that run
+    expect(page.locator("#resume-box")).to_be_visible()
+    expect(page.locator("#resume-text")).to_contain_text("This run aborted (aborted by the operator)")
+    expect(page.locator("#resume-link")).to_have_attribute("href", f"/run?run={run['id']}")
+    page.goto(f"/fleet?campaign={campaign_id}")
     expect(page.locator("#campaign-stopped")).to_be_visible()  # the fleet page offers the campaign's rest too
     expect(page.locator("#campaign-stopped-text")).to_contain_text("This campaign aborted; 1 sensor(s) not done.")
     page.goto("/run")
@@ -610,3 +719,119 @@ def test_a_stopped_run_resumes_from_the_live_run_page(page, server):
     assert [(r["parent_run_id"], r["status"]) for r in runs] == [(None, "aborted"), (run["id"], "completed")]
     assert runs[1]["n_points_recorded"] == 64 - runs[0]["n_points_recorded"]  # only what the first missed
     expect(box).to_be_hidden()  # nothing left to resume
+
+
+# -- telling the truth: the token, the simulated bench, the docs, Start, an unsafe end, a restart (issue 10) -----
+def test_a_wrong_token_is_said_refused_and_clears_once_the_right_one_is_pasted(page, server):
+    _, token = server
+    run_id = _fitted_run(server)
+    page.goto(f"/results?run={run_id}")
+    expect(page.locator("#message")).to_contain_text("no token: paste the token")
+    paste_token(page, "wrong-token-0123456789abcdef", state="token refused")
+    expect(page.locator("#message")).to_contain_text("token refused: the server does not know the token pasted")
+    page.shots("wrong-token")
+    paste_token(page, token)
+    expect(page.locator("#metrics tbody tr.chosen")).to_have_count(1)
+    expect(page.locator("#message")).to_have_text("")  # the old refusal is gone with the token it was about
+    expect(page.locator("#token-state")).to_have_text("token set")
+    page.shots("right-token")
+
+
+def test_every_page_says_the_bench_is_simulated_and_at_what_time_scale(page, server):
+    for path in ("/", "/launch", "/run", "/results", "/fleet", "/results?run=1"):
+        page.goto(path)
+        banner = page.locator("#bench-banner")
+        expect(banner).to_be_visible()
+        expect(banner).to_contain_text("Simulated bench: nothing real moves, lights or measures; time scale 100: "
+                                       "its time runs 100× as fast as the wall clock (a bench hour takes 36 s of "
+                                       "wall time)")
+    page.shots("banner")
+
+
+def test_the_api_docs_work_offline(page, server):
+    base, _ = server
+    requested = []
+    page.on("request", lambda request: requested.append(request.url))
+    page.goto("/docs")
+    expect(page.locator(".opblock").first).to_be_visible()
+    assert page.locator(".opblock").count() >= 25  # every route, from /openapi.json
+    expect(page.locator(".information-container")).to_contain_text("sunbench")
+    page.shots("docs")
+    elsewhere = [url for url in requested if not url.startswith(base)]
+    assert requested and not elsewhere, elsewhere
+
+
+def test_a_double_clicked_start_queues_one_campaign(page, server):
+    _, token = server
+    page.goto("/launch")
+    paste_token(page, token)
+    page.fill("#campaign-form input[name=azimuth_step_deg]", "90")
+    page.fill("#campaign-form input[name=repeats]", "1")
+    page.fill("#campaign-form input[name=centre_repeats]", "1")
+    page.uncheck("#campaign-form input[name=tilt_stage]")
+    before = _api(server, "/api/campaigns")["count"]
+    page.dblclick("#start")
+    expect(page.locator("#message")).to_have_text(re.compile(r"^campaign \d+ queued$"))
+    campaign_id = int(page.locator("#message").inner_text().split()[1])
+    page.click("#start")  # again, the form unchanged: the same key, nothing more queued
+    expect(page.locator("#message")).to_have_text(f"campaign {campaign_id} was queued already by this Start: nothing "
+                                                  "more was queued (change the form to queue another)")
+    page.shots("double-start")
+    assert _api(server, "/api/campaigns")["count"] == before + 1
+    _wait_idle(server)
+
+
+def test_a_run_that_ended_unsafe_is_said_first_on_the_run_and_results_pages(page, server):
+    _, token = server
+    run_id = _fitted_run(server)
+    unsafe = ("ended unsafe: the shutter did not close (no answer from the shutter controller); the lamp was "
+              "switched off instead")
+
+    def status(route):  # as the service says it once the engine's "unsafe" event came (tests/web/test_api.py)
+        response = route.fetch()
+        body = response.json()
+        if response.ok:
+            body["engine"].update(state="idle", run_id=run_id, ended_unsafe=unsafe)
+        route.fulfill(response=response, json=body)
+
+    def run(route):
+        response = route.fetch()
+        body = response.json()
+        if response.ok:
+            body["exit_reason"] = unsafe
+        route.fulfill(response=response, json=body)
+    page.route(re.compile(r"/api/status$"), status)
+    page.route(re.compile(rf"/api/runs/{run_id}$"), run)
+    said = (f"RUN {run_id} ENDED UNSAFE: the shutter did not close (no answer from the shutter controller); the lamp "
+            "was switched off instead. See to the bench (shutter, lamp, table) before the next run.")
+    page.goto("/run")
+    paste_token(page, token)
+    expect(page.locator("#unsafe-box")).to_have_text(said)
+    page.shots("run-unsafe")
+    page.goto(f"/results?run={run_id}")
+    expect(page.locator("#unsafe-box")).to_have_text(said)
+    page.shots("results-unsafe")
+
+
+def test_after_a_restart_the_run_page_links_the_last_run(browser, tmp_path):
+    with serving(tmp_path, None, "--time-scale", str(TIME_SCALE)) as served:
+        server = (served.base, served.token)
+        _fitted_run(server)
+    with serving(tmp_path, None, "--time-scale", str(TIME_SCALE)) as served:  # the same catalogue
+        server = (served.base, served.token)
+        (run,) = _api(server, "/api/runs")["data"]
+        context = browser.new_context(base_url=served.base, viewport={"width": 1280, "height": 900})
+        page = context.new_page()
+        errors = []
+        page.on("pageerror", lambda exc: errors.append(str(exc)))
+        shots = Shots(page, "restart")
+        try:
+            page.goto("/run")
+            paste_token(page, served.token)
+            expect(page.locator("#run-title")).to_have_text(f"none running · last run {run['id']} · sensor SIM-0001 · "
+                                                            "plan seed003 · completed")
+            expect(page.locator("#result-link a")).to_have_attribute("href", f"/results?run={run['id']}")
+            shots("last-run")
+        finally:
+            context.close()
+        assert not errors, errors

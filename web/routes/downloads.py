@@ -13,7 +13,7 @@ from bench.runner import bench_data
 from calibration.errors import InsufficientDataError
 from calibration.models import calibration_from_dict
 
-from ..deps import READ, CatalogueDep
+from ..deps import READ, CatalogueDep, RunId
 
 router = APIRouter(prefix="/api", tags=["downloads"], dependencies=READ,
                    responses={404: {"description": "No such run, calibration or data"}})
@@ -38,7 +38,7 @@ def _calibration_document(catalogue, run_id: int, method: str) -> dict:
 
 @router.get("/runs/{run_id}/data.csv", response_class=PlainTextResponse, summary="Bench data CSV of a run",
             responses={200: {"content": {"text/csv": {}}}})
-def download_run_data(run_id: int, catalogue: CatalogueDep):
+def download_run_data(run_id: RunId, catalogue: CatalogueDep):
     """The run's lineage as bench data (true angles, spot centres), in the format ``sunbench fit`` reads."""
     run = catalogue.run(run_id)
     try:
@@ -54,7 +54,7 @@ def download_run_data(run_id: int, catalogue: CatalogueDep):
 
 @router.get("/calibrations/{run_id}/{method}.json", summary="Calibration document",
             responses={200: {"content": {"application/json": {}}}})
-def download_calibration_json(run_id: int, method: str, catalogue: CatalogueDep):
+def download_calibration_json(run_id: RunId, method: str, catalogue: CatalogueDep):
     """The calibration as ``sunbench apply`` reads it."""
     document = _calibration_document(catalogue, run_id, method)
     return JSONResponse(document, headers=_attachment(f"run-{run_id}-{method}.json"))
@@ -62,7 +62,7 @@ def download_calibration_json(run_id: int, method: str, catalogue: CatalogueDep)
 
 @router.get("/calibrations/{run_id}/{method}.h", response_class=PlainTextResponse, summary="Calibration as C header",
             responses={200: {"content": {"text/x-c": {}}}})
-def download_calibration_header(run_id: int, method: str, catalogue: CatalogueDep):
+def download_calibration_header(run_id: RunId, method: str, catalogue: CatalogueDep):
     """A C header defining ``sunbench_sun_direction(x_px, y_px, &zenith, &azimuth)`` for the flight code."""
     document = _calibration_document(catalogue, run_id, method)
     try:

@@ -41,9 +41,12 @@ Subscription = Annotated[AsyncSubscription, Depends(subscribe_events(encode=sse_
 
 @router.get("/events", response_class=StreamingResponse, responses=_STREAM_DOC, summary="Live bench events (SSE)")
 async def stream_events(events: Subscription, settings: SettingsDep) -> EventSourceResponse:
-    """Server-sent events of the bench: ``status``, ``queued``, ``run-started``, ``state``, ``point``,
-    ``log``, ``warning``, ``finished``, ``campaign-finished``, ``error``; each event's name is its kind and its
-    data the JSON event. A ``: keep-alive`` comment is sent when idle. Each client has its own bounded
+    """Server-sent events of the bench: ``status``, ``queued``, ``run-started``, ``state``, ``point`` (its key,
+    stage, table and body angles, exposure, spots and which of them were clipped at the detector's edge),
+    ``record`` (a stage's result: the exposure, the centre, the tilt stage, a physical batch's decision), ``log``,
+    ``warning``, ``unsafe`` (the run ended without the bench made safe), ``finished``, ``campaign-finished``,
+    ``mount``, ``mount-answered``, ``resume-queued``, ``error``; each event's name is its kind and its data the
+    JSON event. A ``: keep-alive`` comment is sent when idle. Each client has its own bounded
     buffer: a slow client loses its oldest events, it never holds up the bench."""
 
     async def body() -> AsyncIterator[bytes]:

@@ -11,8 +11,8 @@ from pydantic import Field
 from bench.results import NoCalibration, fit_residuals
 from calibration.errors import CalibrationFormatError
 
-from ..deps import READ, CatalogueDep
-from ..schemas import _Out
+from ..deps import READ, CatalogueDep, RunId
+from ..schemas import LeftOutFramePublic, _Out
 
 router = APIRouter(prefix="/api/runs", tags=["runs"], dependencies=READ,
                    responses={404: {"description": "No such run, or no such calibration of it"}})
@@ -20,6 +20,7 @@ router = APIRouter(prefix="/api/runs", tags=["runs"], dependencies=READ,
 
 class FitPointPublic(_Out):
     id: int
+    key: str
     stage: str
     zenith_deg: float = Field(description="True zenith of the point [°]")
     azimuth_deg: float = Field(description="True body azimuth of the point [°]")
@@ -33,6 +34,11 @@ class FitPointPublic(_Out):
     zenith_residual_deg: float | None = Field(description="Fitted minus true zenith [°]")
     azimuth_residual_deg: float | None = Field(description="Fitted minus true azimuth, wrapped to ±180° [°]")
     error_deg: float | None = Field(description="Angle between the fitted and the true direction [°]")
+    excluded: str | None = Field(None, description="Why this calibration's fit left the point out (Table 4.1 "
+                                                   "counts it nowhere): \"spot clipped at the detector's edge\", or "
+                                                   "the reason it rejected the point's frames; null when fitted")
+    frames_left_out: list[LeftOutFramePublic] = Field([], description="The point's frames the fit did not use, "
+                                                                      "and why (its mean spot is of the others)")
 
 
 class FitPublic(_Out):
@@ -46,7 +52,7 @@ class FitPublic(_Out):
 
 
 @router.get("/{run_id}/fit", response_model=FitPublic, summary="Points of a run through one calibration")
-def read_fit(run_id: int, catalogue: CatalogueDep, method: str | None = None):
+def read_fit(run_id: RunId, catalogue: CatalogueDep, method: str | None = None):
     """The run's points (mean spot of each) with their radius from the calibration's centre, the direction
     the calibration gives, and its residuals: what the zenith-vs-radius and residual plots draw.
     `method` defaults to the chosen calibration."""

@@ -1,16 +1,17 @@
 """The dashboard: plain HTML pages and their small JS modules from ``web/static``, and plotly.js from the
 installed ``plotly`` package (served locally: the bench PCs are often offline, so no CDN).
 
-The pages hold no data and need no token; every API call they make sends the token the operator pasted
-(kept in the browser's localStorage).
+The pages hold no data and need no token (but for the banner of a simulated bench: simulated, and at what
+time scale); every API call they make sends the token the operator pasted (kept in the browser's localStorage).
 """
 
 from __future__ import annotations
 
+import html
 from importlib import resources
 from pathlib import Path
 
-from fastapi import APIRouter, FastAPI, HTTPException
+from fastapi import APIRouter, FastAPI, HTTPException, Request
 from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.staticfiles import StaticFiles
 
@@ -44,19 +45,47 @@ def plotly_js():
     return FileResponse(path, media_type="text/javascript", headers={"Cache-Control": "max-age=86400"})
 
 
-def render_page(path: str) -> str:
-    """The page at `path`: its <main> in the layout, its own link marked, its scripts in the head."""
+def _wall(seconds: float) -> str:
+    seconds = round(seconds)
+    return f"{seconds // 60} min {seconds % 60} s" if seconds >= 60 else f"{seconds} s"
+
+
+def bench_banner(bench: dict | None) -> str:
+    """The banner every page shows on a simulated bench (none on a real one): that it is simulated, and how its
+    time runs against the wall clock (:meth:`bench.service.BenchService.bench_info`)."""
+    if not bench or not bench.get("simulated"):
+        return ""
+    scale = bench.get("time_scale")
+    if scale is None:
+        pace = "its time scale is unknown"
+    elif scale == 0:
+        pace = "time scale 0: every wait is skipped, so a run takes as long as the computer needs"
+    elif scale == 1:
+        pace = "time scale 1: its time runs as the wall clock's"
+    else:
+        pace = (f"time scale {scale:g}: its time runs {scale:g}× as fast as the wall clock (a bench hour takes "
+                f"{_wall(3600 / scale)} of wall time)")
+    attribute = "" if scale is None else f"{scale:g}"
+    return (f'  <p id="bench-banner" class="sim-banner" role="note" data-time-scale="{attribute}">'
+            f"<b>Simulated bench</b>: nothing real moves, lights or measures; {html.escape(pace)}.</p>\n")
+
+
+def render_page(path: str, bench: dict | None = None) -> str:
+    """The page at `path`: its <main> in the layout, its own link marked, its scripts in the head, and the
+    simulated bench's banner when `bench` (its :meth:`~bench.service.BenchService.bench_info`) says so."""
     name = PAGES[path].removesuffix(".html")
     scripts = ('  <script src="/static/plotly.min.js"></script>\n' if path in PLOTS else "")
     scripts += f'  <script type="module" src="/static/{name}.js"></script>\n'
     main = (STATIC_DIR / PAGES[path]).read_text(encoding="utf-8").split("\n", 1)[1]  # drop the first comment line
-    html = LAYOUT.read_text(encoding="utf-8").format(title=TITLES[path], scripts=scripts, main=main)
-    return html.replace(f'<a href="{path}">', f'<a href="{path}" class="here">', 1)
+    page = LAYOUT.read_text(encoding="utf-8").format(title=TITLES[path], scripts=scripts, main=main,
+                                                     banner=bench_banner(bench))
+    return page.replace(f'<a href="{path}">', f'<a href="{path}" class="here">', 1)
 
 
 def _page_route(path: str):
-    def page():
-        return HTMLResponse(render_page(path), headers={"Cache-Control": "no-cache"})
+    def page(request: Request):
+        info = getattr(request.app.state.service, "bench_info", None)
+        return HTMLResponse(render_page(path, info() if info else None), headers={"Cache-Control": "no-cache"})
     page.__name__ = f"page_{PAGES[path].removesuffix('.html')}"
     return page
 

@@ -6,7 +6,7 @@ from fastapi import APIRouter, Depends, status
 
 from bench.results import point_means
 
-from ..deps import READ, CatalogueDep, ServiceDep
+from ..deps import READ, AfterId, CampaignFilter, CatalogueDep, RunId, ServiceDep
 from ..schemas import (CalibrationsPublic, Message, PhysicalPlanPublic, PointsPublic, RunLogPublic, RunPublic,
                        RunsPublic, RunValuesPublic)
 from ..security import require_token
@@ -16,7 +16,7 @@ router = APIRouter(prefix="/api/runs", tags=["runs"], dependencies=READ,  # resu
 
 
 #: What the results page shows of a calibration document besides its metrics (none in older documents)
-DOCUMENT_FIELDS = ("quality", "rejected", "uncertainty_map")
+DOCUMENT_FIELDS = ("quality", "rejected", "uncertainty_map", "parameters")
 
 
 #: The physical plan's records (bench/plans.py physical_plan): one per measured batch, then the final one
@@ -46,27 +46,27 @@ def _with_document_fields(record: dict) -> dict:
 
 
 @router.get("", response_model=RunsPublic, summary="List runs")
-def read_runs(catalogue: CatalogueDep, campaign_id: int | None = None):
+def read_runs(catalogue: CatalogueDep, campaign_id: CampaignFilter = None):
     """Every run (or those of one campaign), oldest first."""
     runs = catalogue.runs(campaign_id)
     return RunsPublic(data=runs, count=len(runs))
 
 
 @router.get("/{run_id}", response_model=RunPublic, summary="One run")
-def read_run(run_id: int, catalogue: CatalogueDep):
+def read_run(run_id: RunId, catalogue: CatalogueDep):
     """A run with its plan arguments, provenance and progress."""
     return catalogue.run(run_id)
 
 
 @router.get("/{run_id}/points", response_model=PointsPublic, summary="Points of a run")
-def read_points(run_id: int, catalogue: CatalogueDep):
+def read_points(run_id: RunId, catalogue: CatalogueDep):
     """The run's points in recording order, each with the mean spot of its good readings."""
     points = point_means(catalogue, run_id)
     return PointsPublic(run_id=run_id, data=points, count=len(points))
 
 
 @router.get("/{run_id}/calibrations", response_model=CalibrationsPublic, summary="Calibrations of a run")
-def read_calibrations(run_id: int, catalogue: CatalogueDep):
+def read_calibrations(run_id: RunId, catalogue: CatalogueDep):
     """Every method fitted to the run with its metrics; `chosen` marks the best held-out one. From each
     calibration document: its quality and warnings, the frames it rejected, and (physical model) its 1σ
     pointing uncertainty over the field; null where the document does not say."""
@@ -76,7 +76,7 @@ def read_calibrations(run_id: int, catalogue: CatalogueDep):
 
 
 @router.get("/{run_id}/values", response_model=RunValuesPublic, summary="Values a run's plan recorded")
-def read_values(run_id: int, catalogue: CatalogueDep):
+def read_values(run_id: RunId, catalogue: CatalogueDep):
     """What the plan decided on the way, as `sunbench show` reads them: the exposure, the centre and the tilt
     stage of seed 003; the physical plan's design, its stopping rule's decision after each batch
     (`physical_batch_<k>`) and its final one (`physical_stop`), the latter also typed under `physical`."""
@@ -86,7 +86,7 @@ def read_values(run_id: int, catalogue: CatalogueDep):
 
 
 @router.get("/{run_id}/log", response_model=RunLogPublic, summary="Log of a run")
-def read_log(run_id: int, catalogue: CatalogueDep, after_id: int = 0):
+def read_log(run_id: RunId, catalogue: CatalogueDep, after_id: AfterId = 0):
     """What the engine logged during the run (state changes, warnings, errors, its end), oldest first;
     `after_id` returns only the events after the one a client saw last."""
     catalogue.run(run_id)
@@ -97,7 +97,7 @@ def read_log(run_id: int, catalogue: CatalogueDep, after_id: int = 0):
 @router.post("/{run_id}/resume", response_model=Message, status_code=status.HTTP_202_ACCEPTED,
              summary="Resume a run that ended without completing", dependencies=[Depends(require_token)],
              responses={409: {"description": "Complete, still live, already resumed, or its campaign is busy"}})
-def resume_run(run_id: int, service: ServiceDep):
+def resume_run(run_id: RunId, service: ServiceDep):
     """Queue a new run, linked to this crashed, aborted or failed one, that measures only the points its
     lineage is missing (as `sunbench resume`), then the rest of its campaign; follow it on /api/events."""
     service.resume_run(run_id)

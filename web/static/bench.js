@@ -1,5 +1,5 @@
 // Bench page: cached status, manual commands, the latest frame with its spot marked.
-import { $, api, fmt, initTokenForm, report, say } from "./common.js";
+import { $, api, drawLatestFrame, fmt, initTokenForm, report, say } from "./common.js";
 
 let status = null;
 
@@ -57,35 +57,10 @@ function jog(azimuth_deg, zenith_deg) {
 }
 
 async function refreshFrame() {
-  const canvas = $("#frame");
-  const ctx = canvas.getContext("2d");
-  let image;
   try {
-    const blob = await (await api("/api/frame.png", { raw: true })).blob();
-    image = await createImageBitmap(blob);
+    await drawLatestFrame($("#frame"), $("#spot-text"));
   } catch (err) {
-    if (err.status === 404) $("#spot-text").textContent = "no frame yet: open the shutter";
-    else report(err);
-    return;
-  }
-  canvas.width = image.width;
-  canvas.height = image.height;
-  ctx.drawImage(image, 0, 0);
-  let spot = null;
-  try { spot = await api("/api/frame/spot"); } catch (_) { /* no spot */ }
-  if (spot && spot.x_px !== null && spot.y_px !== null) {
-    // pixel centres: pixel (0, 0) is centred at (0, 0), the canvas' pixel at (0.5, 0.5)
-    const x = spot.x_px + 0.5, y = spot.y_px + 0.5;
-    ctx.strokeStyle = "#ff3b30";
-    ctx.lineWidth = 1.5;
-    ctx.beginPath();
-    ctx.arc(x, y, 10, 0, 2 * Math.PI);
-    ctx.moveTo(x - 18, y); ctx.lineTo(x - 4, y); ctx.moveTo(x + 4, y); ctx.lineTo(x + 18, y);
-    ctx.moveTo(x, y - 18); ctx.lineTo(x, y - 4); ctx.moveTo(x, y + 4); ctx.lineTo(x, y + 18);
-    ctx.stroke();
-    $("#spot-text").textContent = `spot at (${fmt(spot.x_px, 2)}, ${fmt(spot.y_px, 2)}) px, peak ${fmt(spot.peak_dn, 0)} DN`;
-  } else {
-    $("#spot-text").textContent = spot?.error ? `no spot: ${spot.error}` : "no spot";
+    report(err);
   }
 }
 

@@ -1,5 +1,5 @@
 // Fleet of a campaign: one row per sensor with its run and chosen calibration.
-import { $, api, el, fmt, initTokenForm, query, report, say } from "./common.js";
+import { $, api, el, fmt, initTokenForm, query, report, say, stopsEarly } from "./common.js";
 
 const campaignParam = query("campaign");
 
@@ -18,6 +18,8 @@ async function showFleet(id) {
   const done = fleet.data.filter((f) => f.status === "done").length;
   $("#fleet-heading").textContent = `Campaign ${id}: ${done} / ${fleet.count} sensors done`;
   const campaign = (await api("/api/campaigns")).data.find((c) => c.id === id);
+  // a plan with a stopping rule (physical): each run's planned points are its cap
+  const bound = stopsEarly(campaign?.plan) ? "at most " : "";
   const stopped = campaign && (campaign.status === "aborted" || campaign.status === "failed");
   $("#campaign-stopped").hidden = !stopped;
   if (stopped) {
@@ -30,7 +32,7 @@ async function showFleet(id) {
     return el("tr", {},
       el("td", {}, String(f.position + 1)), el("td", {}, f.sensor_id), el("td", {}, f.status + (f.run_status && f.run_status !== f.status ? ` (${f.run_status})` : "")),
       el("td", {}, f.run_id ? el("a", { href: `/results?run=${f.run_id}` }, `run ${f.run_id}`) : "–"),
-      el("td", {}, f.run_id ? `${f.n_points_recorded ?? 0} / ${f.n_points_planned ?? "–"}` : "–"),
+      el("td", {}, f.run_id ? `${f.n_points_recorded ?? 0} / ${bound}${f.n_points_planned ?? "–"}` : "–"),
       el("td", {}, f.method ?? "–"), el("td", {}, fmt(held.rms_vector_deg)), el("td", {}, fmt(held.p95_vector_deg)),
       el("td", {}, fmt(held.max_vector_deg)), el("td", {}, f.exit_reason ?? f.metrics?.error ?? ""));
   }));

@@ -51,8 +51,11 @@ function showPlan() {
   clearDryRun();
 }
 
+const FIGURES = ["#d-points", "#d-frames", "#d-moves", "#d-sensors", "#d-duration-sensor", "#d-duration", "#d-warmup",
+  "#d-wall", "#d-nviol"];
+
 function clearDryRun() {
-  for (const id of ["#d-points", "#d-frames", "#d-moves", "#d-duration", "#d-warmup", "#d-nviol"]) $(id).textContent = "–";
+  for (const id of FIGURES) $(id).textContent = "–";
   for (const id of ["#d-summary", "#d-bound"]) $(id).textContent = "";
   $("#violations").replaceChildren();
 }
@@ -97,17 +100,30 @@ function showRefusal(err) {
 
 const minutes = (s) => `${(s / 60).toFixed(1)} min`;
 
-// the preflight's figures; a plan with a stopping rule is expanded to its cap, so they are upper bounds
-function showDryRun(r, sensors) {
+// bench time on the wall clock, in words: the same on a real bench; bench time / time scale on a simulated one
+function wallText(r, bound) {
+  if (!r.simulated) return `${bound}${duration(r.wall_duration_s)} (a real bench: its wall time is its bench time)`;
+  if (r.wall_duration_s === null) return "no waiting: the simulated bench skips every wait (time scale 0)";
+  return `${bound}${duration(r.wall_duration_s)} on this simulated bench (bench time / time scale ${r.time_scale})`;
+}
+
+// the preflight's figures: points, frames and moves per sensor; durations per sensor and for the whole campaign,
+// in bench time and on the wall clock. A plan with a stopping rule is expanded to its cap: upper bounds
+function showDryRun(r) {
   const bound = r.upper_bound ? "at most " : "";
   $("#d-points").textContent = `${bound}${r.points}`;
   $("#d-frames").textContent = `${bound}${r.frames}`;
   $("#d-moves").textContent = `${bound}${r.moves}`;
+  $("#d-sensors").textContent = String(r.sensors);
+  $("#d-duration-sensor").textContent = `${bound}${duration(r.duration_per_sensor_s)}`;
   $("#d-duration").textContent = `${bound}${duration(r.duration_s)}`;
   $("#d-warmup").textContent = r.warmup_s > 0 ? duration(r.warmup_s) : "none (the lamp needs none)";
+  $("#d-wall").textContent = wallText(r, bound);
+  const wall = r.wall_duration_s === null ? "no wall time (time scale 0)"
+    : `${bound || "about "}${minutes(r.wall_duration_s)} of wall time`;
   $("#d-summary").textContent = `${bound}${r.points} points, ${bound}${r.frames} frames, ${bound}${r.moves} moves per `
-    + `sensor × ${sensors} sensor(s); ${bound || "about "}${minutes(r.duration_s)} on the bench`
-    + (r.warmup_s > 0 ? ` (of which ${minutes(r.warmup_s)} lamp warm-up)` : "");
+    + `sensor × ${r.sensors} sensor(s); ${bound || "about "}${minutes(r.duration_s)} of bench time in all`
+    + (r.warmup_s > 0 ? ` (of which ${minutes(r.warmup_s)} lamp warm-up)` : "") + `, ${wall}`;
   $("#d-bound").textContent = r.upper_bound
     ? `Upper bounds, every point counted: ${r.upper_bound_reason ?? "the plan may stop early"}.` : "";
   showViolations(r.violations);
@@ -118,7 +134,7 @@ async function dryRun() {
   const body = campaign();
   try {
     const r = await api("/api/campaigns/dry-run", { method: "POST", body });
-    showDryRun(r, body.sensors.length);
+    showDryRun(r);
     say(r.violations.length ? "the campaign would be refused" : "dry run ok: nothing moved", r.violations.length > 0);
     return r;
   } catch (err) {
@@ -127,21 +143,35 @@ async function dryRun() {
   }
 }
 
+// one key per Start of this form: a double click, or a click again on an unchanged form, sends the same key and
+// the server queues one campaign (answering the first one's id); any change to the form makes a new key
+const newKey = () => (crypto.randomUUID ? crypto.randomUUID()
+  : Array.from(crypto.getRandomValues(new Uint8Array(16)), (b) => b.toString(16).padStart(2, "0")).join(""));
+let startKey = newKey();
+
 async function start(e) {
   e.preventDefault();
+  const button = $("#start");
+  if (button.disabled) return;
+  button.disabled = true;  // until the answer: the queued campaign, or why not
   markInvalid([]);
   try {
-    const { campaign_id } = await api("/api/campaigns", { method: "POST", body: campaign() });
-    say(`campaign ${campaign_id} queued`);
+    const { campaign_id, replayed } = await api("/api/campaigns", { method: "POST", body: campaign(),
+      headers: { "Idempotency-Key": startKey } });
+    say(replayed ? `campaign ${campaign_id} was queued already by this Start: nothing more was queued (change the `
+      + "form to queue another)" : `campaign ${campaign_id} queued`);
     $("#started").replaceChildren(`Campaign ${campaign_id} queued: follow it on `,
       el("a", { href: "/run" }, "the live run"), " or ", el("a", { href: `/fleet?campaign=${campaign_id}` }, "its fleet"), ".");
   } catch (err) {
     showRefusal(err);
+  } finally {
+    button.disabled = false;
   }
 }
 
 initTokenForm();
 field("plan").addEventListener("change", showPlan);
+for (const event of ["input", "change"]) form.addEventListener(event, () => { startKey = newKey(); });
 showPlan();  // a browser may restore another choice than the page's on reload
 $("#dry-run").addEventListener("click", dryRun);
 form.addEventListener("submit", start);

@@ -4,8 +4,10 @@
 // The radius and the fitted directions come from GET /api/runs/{id}/fit (computed by the calibration code); the
 // quality and the uncertainty map from the calibration documents, as GET /api/runs/{id}/calibrations serves them.
 /* global Plotly */
-import { $, api, download, el, fmt, initTokenForm, matrixLayout, PLOT_CONFIG, plotLayout, query, report, say, stopsEarly }
-  from "./common.js";
+import {
+  $, api, download, el, fmt, initTokenForm, leftOutTrace, matrixLayout, PLOT_CONFIG, plotLayout, query, report, say,
+  splitExcluded, stopsEarly, unsafeText,
+} from "./common.js";
 
 const runParam = query("run");
 
@@ -48,15 +50,17 @@ function metricsTable(calibrations) {
   }));
 }
 
+// fig. 4.4: the mean spot of each point; those the fit left out (clipped at the detector's edge, or rejected by
+// the calibration shown) apart, with why
 function spotMap(points, fit, sensor) {
   $("#spot-section").hidden = false;
-  const good = points.filter((p) => p.x_px !== null);
+  const [good, left] = splitExcluded(fit ? fit.data : points.filter((p) => p.x_px !== null));
   const traces = [{
     type: "scatter", mode: "markers", name: "mean spot per point",
     x: good.map((p) => p.x_px), y: good.map((p) => p.y_px), text: good.map((p) => p.key),
     marker: { size: 6, color: good.map((p) => p.zenith_deg), colorscale: "Viridis", colorbar: { title: { text: "zenith [°]" } } },
     hovertemplate: "(%{x:.2f}, %{y:.2f}) px<br>%{text}<extra></extra>",
-  }];
+  }, leftOutTrace(left, (p) => p.x_px, (p) => p.y_px)].filter(Boolean);
   if (fit) {
     traces.push({ type: "scatter", mode: "markers", name: `centre (${fit.method})`, x: [fit.x0_px], y: [fit.y0_px],
       marker: { symbol: "x", size: 12, color: "red" } });
@@ -66,13 +70,15 @@ function spotMap(points, fit, sensor) {
 
 // fig. 4.6: θ against r, the bench's points and the calibration through them
 function radiusPlot(fit) {
-  const byRadius = fit.data.slice().sort((a, b) => a.radius_px - b.radius_px);
+  const [used, left] = splitExcluded(fit.data);
+  const byRadius = used.slice().sort((a, b) => a.radius_px - b.radius_px);
   Plotly.react("radius-plot", [
-    { type: "scatter", mode: "markers", name: "bench (true zenith)", x: fit.data.map((p) => p.radius_px),
-      y: fit.data.map((p) => p.zenith_deg), marker: { size: 6 } },
+    { type: "scatter", mode: "markers", name: "bench (true zenith)", x: used.map((p) => p.radius_px),
+      y: used.map((p) => p.zenith_deg), marker: { size: 6 } },
     { type: "scatter", mode: "lines", name: `${fit.method} at the measured spots`, x: byRadius.map((p) => p.radius_px),
       y: byRadius.map((p) => p.zenith_fit_deg), line: { width: 1.5 } },
-  ], plotLayout(`zenith vs radius from the ${fit.method} centre (${fmt(fit.x0_px, 2)}, ${fmt(fit.y0_px, 2)}) px`,
+    leftOutTrace(left, (p) => p.radius_px, (p) => p.zenith_deg),
+  ].filter(Boolean), plotLayout(`zenith vs radius from the ${fit.method} centre (${fmt(fit.x0_px, 2)}, ${fmt(fit.y0_px, 2)}) px`,
     "radius r [px]", "zenith θ [°]"), PLOT_CONFIG);
 }
 
@@ -94,7 +100,7 @@ function byAzimuth(data) {
 const LINE_MIN_POINTS = 3;  // off-axis points an azimuth needs for its own line
 
 function zenithResidualPlot(fit) {
-  const off = fit.data.filter((p) => p.zenith_deg > 0.5);
+  const [off, left] = splitExcluded(fit.data.filter((p) => p.zenith_deg > 0.5));
   const groups = byAzimuth(off);
   const grid = groups.length > 0 && groups.every(([, points]) => points.length >= LINE_MIN_POINTS);
   $("#zenith-residual-heading").textContent = grid ? "Zenith residuals by azimuth (fig. 4.7)"
@@ -109,9 +115,10 @@ function zenithResidualPlot(fit) {
       colorbar: { title: { text: "azimuth [°]" } } },
     hovertemplate: "θ %{x:.1f}°: %{y:.4f}°<br>%{text}<extra></extra>",
   }];
-  Plotly.react("zenith-residual-plot", traces, plotLayout(grid ? `zenith residuals of ${fit.method} by azimuth (fig. 4.7)`
+  const leftOut = leftOutTrace(left, (p) => p.zenith_deg, (p) => p.zenith_residual_deg);
+  Plotly.react("zenith-residual-plot", leftOut ? [...traces, leftOut] : traces, plotLayout(grid ? `zenith residuals of ${fit.method} by azimuth (fig. 4.7)`
     : `zenith residuals of ${fit.method} at ${off.length} directions`, "true zenith θ [°]", "θ fitted − θ true [°]",
-  grid ? {} : { showlegend: false }), PLOT_CONFIG);
+  grid || left.length ? {} : { showlegend: false }), PLOT_CONFIG);
 }
 
 // fig. 4.8: the azimuth set on the bench against the spot's azimuth φ_meas (eq. 10), with the calibration's
@@ -132,7 +139,7 @@ function azimuthLine(off) {
 }
 
 function azimuthPlot(fit) {
-  const off = fit.data.filter((p) => p.zenith_deg >= 5 && p.azimuth_fit_deg !== null);
+  const [off, left] = splitExcluded(fit.data.filter((p) => p.zenith_deg >= 5 && p.azimuth_fit_deg !== null));
   const { b1, b0 } = azimuthLine(off);
   const meas = off.map((p) => p.azimuth_spot_deg);
   const unwrap = (phi, i) => b1 * meas[i] + b0 + wrap(phi - b1 * meas[i] - b0);
@@ -144,10 +151,12 @@ function azimuthPlot(fit) {
       y: order.map((i) => unwrap(off[i].azimuth_fit_deg, i)), line: { width: 1.5 } },
     { type: "scatter", mode: "markers", name: "residual (right axis)", x: meas, yaxis: "y2",
       y: off.map((p) => p.azimuth_residual_deg), marker: { size: 4, symbol: "diamond" } },
-  ], plotLayout(`azimuth of ${fit.method} against the spot's azimuth (fig. 4.8)`, "φ meas, eq. 10 [°]",
+    leftOutTrace(left, (p) => p.azimuth_spot_deg,
+      (p) => b1 * p.azimuth_spot_deg + b0 + wrap(p.azimuth_deg - b1 * p.azimuth_spot_deg - b0)),
+  ].filter(Boolean), plotLayout(`azimuth of ${fit.method} against the spot's azimuth (fig. 4.8)`, "φ meas, eq. 10 [°]",
     `φ, unwrapped about ${b1 < 0 ? "−" : ""}φ meas ${b0 < 0 ? "−" : "+"} ${fmt(Math.abs(b0), 1)}° [°]`,
-    { yaxis2: { title: { text: "residual [°]" }, overlaying: "y", side: "right", zeroline: false },
-      margin: { t: 40, r: 60, b: 50, l: 60 } }), PLOT_CONFIG);
+    { yaxis2: { title: { text: "residual [°]", font: { size: 13 } }, overlaying: "y", side: "right", zeroline: false,
+      automargin: true, tickfont: { size: 12 }, nticks: 8 } }), PLOT_CONFIG);
 }
 
 // azimuth is an angle: 0° and 360° get one colour
@@ -156,14 +165,16 @@ const CYCLIC = [[0, "#d62728"], [0.25, "#1f77b4"], [0.5, "#2ca02c"], [0.75, "#94
 // fig. 4.9: the angle between the calibrated and the true direction, against zenith (fitted and held-out
 // points together)
 function errorPlot(fit) {
+  const [used, left] = splitExcluded(fit.data);
   Plotly.react("error-plot", [{
-    type: "scatter", mode: "markers", name: "vector error", x: fit.data.map((p) => p.zenith_deg),
-    y: fit.data.map((p) => p.error_deg), text: fit.data.map((p) => `azimuth ${fmt(p.azimuth_deg, 1)}°`),
-    marker: { size: 6, color: fit.data.map((p) => p.azimuth_deg), colorscale: CYCLIC, cmin: 0, cmax: 360,
+    type: "scatter", mode: "markers", name: "vector error", x: used.map((p) => p.zenith_deg),
+    y: used.map((p) => p.error_deg), text: used.map((p) => `azimuth ${fmt(p.azimuth_deg, 1)}°`),
+    marker: { size: 6, color: used.map((p) => p.azimuth_deg), colorscale: CYCLIC, cmin: 0, cmax: 360,
       colorbar: { title: { text: "azimuth [°]" } } },
-    hovertemplate: "θ %{x:.1f}°: %{y:.4f}°<br>%{text}<extra></extra>",
-  }], plotLayout(`vector error of ${fit.method} against zenith (fig. 4.9)`,
-    "true zenith θ [°]", "vector error [°]", { showlegend: false }), PLOT_CONFIG);
+    hovertemplate: "θ %{x:.1f}°: %{y:.4f}°<br>%{text}<extra></extra>", showlegend: false,
+  }, leftOutTrace(left, (p) => p.zenith_deg, (p) => p.error_deg)].filter(Boolean), plotLayout(
+    `vector error of ${fit.method} against zenith (fig. 4.9)`, "true zenith θ [°]", "vector error [°]",
+    { showlegend: left.length > 0 }), PLOT_CONFIG);
 }
 
 const FIT_PLOTS = [radiusPlot, zenithResidualPlot, azimuthPlot, errorPlot];
@@ -267,6 +278,84 @@ function uncertaintyPlot(record) {
       : `A frame read in flight adds its centroid noise: up to ${fmt(noise, 4)}° for ${fmt(map.noise_px, 3)} px.`);
 }
 
+// the fitted parameters of the calibration shown, with their 1σ where its fit gives one (the document's
+// `parameters` and `parameters.uncertainties`); a parameter the model holds fixed says so
+const NOT_PARAMETERS = new Set(["uncertainties", "correlation", "fitted"]);
+const precise = (v, digits) => (typeof v === "number" ? Number(v.toPrecision(digits)).toString() : String(v));
+
+function parameterValue(value) {
+  if (!Array.isArray(value)) return precise(value, 7);
+  if (value.some(Array.isArray)) {
+    return `${value.length} × ${Math.max(...value.map((v) => v.length))} coefficients (in the JSON download)`;
+  }
+  return `[${value.map((v) => precise(v, 5)).join(", ")}]`;
+}
+
+function parametersSection(record) {
+  const parameters = record?.parameters ?? null;
+  $("#parameters-section").hidden = !parameters;
+  if (!parameters) return;
+  const sigmas = parameters.uncertainties ?? {};
+  const fitted = new Set(parameters.fitted ?? []);
+  const names = Object.keys(parameters).filter((k) => !NOT_PARAMETERS.has(k));
+  const order = [...names.filter((n) => fitted.has(n)), ...names.filter((n) => !fitted.has(n))];
+  $("#parameters-heading").textContent = `Fitted parameters of ${record.method}`;
+  $("#parameters tbody").replaceChildren(...order.map((name) => {
+    const sigma = sigmas[name];
+    const held = parameters.fitted && !fitted.has(name);
+    return el("tr", { class: held ? "muted" : "" }, el("td", {}, name), el("td", {}, parameterValue(parameters[name])),
+      el("td", {}, sigma !== undefined && sigma !== null ? `± ${precise(sigma, 2)}` : held ? "not fitted" : "–"));
+  }));
+  $("#parameters-note").textContent = Object.keys(sigmas).length
+    ? "± 1σ from the fit's covariance (the unit is the name's: _px, _mm, _deg; others are ratios)."
+    : "This method's fit gives no 1σ of its parameters (the unit is the name's: _px, _mm, _deg).";
+}
+
+// where the run's figures come from: the bench's configuration, the software, the operator, the devices
+function provenanceSection(run) {
+  const p = run.provenance ?? {};
+  const devices = p.devices ?? {};
+  const rows = [
+    ["Bench", p.simulated === undefined ? "–" : p.simulated ? "simulated (no real device measured this run)" : "real"],
+    ["Bench configuration hash", p.bench_config_hash ?? "–"],
+    ["Software", p.software_version ?? "–"],
+    ["Operator", p.operator ?? "–"],
+    ["Sensor serial", p.sensor_serial ?? run.sensor_id],
+    ...Object.entries(devices).map(([role, identity]) => [`Device: ${role}`, identity]),
+    ["Frames kept", p.frames ?? "–"],
+    ["Campaign", run.campaign_id ? el("a", { href: `/fleet?campaign=${run.campaign_id}` }, `campaign ${run.campaign_id}`) : "–"],
+    ...(run.parent_run_id ? [["Resumes", el("a", { href: `/results?run=${run.parent_run_id}` }, `run ${run.parent_run_id}`)]] : []),
+  ];
+  $("#provenance").replaceChildren(...rows.flatMap(([name, value]) => [el("dt", {}, name), el("dd", {}, value)]));
+}
+
+// a run that ended unsafe: first, in red
+function unsafeBox(run) {
+  const text = unsafeText(run);
+  $("#unsafe-box").hidden = !text;
+  $("#unsafe-box").textContent = text ? `RUN ${run.id} ENDED UNSAFE: ${text.replace(/^ended unsafe:\s*/, "")}. See to the `
+    + "bench (shutter, lamp, table) before the next run." : "";
+}
+
+// a crashed, aborted or failed run nothing resumed yet: Resume run here, then follow it on /run?run=N
+const RESUMABLE = new Set(["aborted", "failed", "crashed"]);
+
+function resumeBox(run, runs) {
+  const child = runs.find((r) => r.parent_run_id === run.id);
+  const offer = RESUMABLE.has(run.status) && !child;
+  $("#resume-box").hidden = !offer;
+  if (!offer) return;
+  $("#resume-text").textContent = `This run ${run.status}${run.exit_reason ? ` (${run.exit_reason})` : ""} after `
+    + `${pointsText(run)} points. Resuming it measures only the missing points, then the rest of its campaign.`;
+  $("#resume-link").href = `/run?run=${run.id}`;
+  $("#resume-run").onclick = async () => {
+    try {
+      say((await api(`/api/runs/${run.id}/resume`, { method: "POST" })).message);
+      $("#resume-run").disabled = true;
+    } catch (err) { report(err); }
+  };
+}
+
 function downloads(runId, method) {
   const button = (label, path, filename) => el("button", { onclick: () => download(path, filename).catch(report) }, label);
   $("#downloads").replaceChildren(
@@ -279,6 +368,7 @@ async function showMethod(runId, points, method, sensor, calibrations) {
   downloads(runId, method);
   const record = calibrations.filter((c) => c.method === method).pop();  // the latest, as the downloads
   qualitySection(record);
+  parametersSection(record);
   uncertaintyPlot(record);
   let fit = null;
   if (method) {
@@ -291,15 +381,18 @@ async function showMethod(runId, points, method, sensor, calibrations) {
 
 async function showRun(runId) {
   $("#run-summary").hidden = false;
-  const [run, points, calibrations, values] = await Promise.all([
+  const [run, points, calibrations, values, runs] = await Promise.all([
     api(`/api/runs/${runId}`), api(`/api/runs/${runId}/points`), api(`/api/runs/${runId}/calibrations`),
-    api(`/api/runs/${runId}/values`)]);
+    api(`/api/runs/${runId}/values`), api("/api/runs")]);
   // the detector's size for the spot map's axes: the bench's sensor now, if it answers (else the axes fit the
   // points); a run recorded with another sensor than today's still has its points drawn where they were
   const status = await api("/api/status").catch(() => null);
   $("#run-heading").textContent = `Run ${run.id} · sensor ${run.sensor_id}`;
   $("#run-info").textContent = `${run.plan_name}, ${run.status}${run.exit_reason ? ` (${run.exit_reason})` : ""}, `
     + `${pointsText(run)} points, ${run.started_utc ?? "–"} → ${run.ended_utc ?? "–"}`;
+  unsafeBox(run);
+  resumeBox(run, runs.data);
+  provenanceSection(run);
   stoppingSection(values.physical);
   const usable = calibrations.data.filter((c) => !c.metrics?.error);
   const chosen = usable.find((c) => c.chosen) || usable[0];

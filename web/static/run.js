@@ -1,10 +1,15 @@
-// Live run: progress, ETA and the spot map from the server-sent events; pause / resume / abort.
+// Live run: progress, ETA, each point as it lands (stage, angles, exposure, its spots, the latest frame), the spot
+// map and a log line per point and per stage result, from the server-sent events; pause / resume / abort, each
+// offered only when the engine's state allows it; a run that ended unsafe, said first.
 /* global Plotly */
 import {
-  $, api, duration, el, getToken, initTokenForm, matrixLayout, PLOT_CONFIG, query, report, say, stopsEarly,
+  $, api, drawLatestFrame, duration, el, fmt, getToken, initTokenForm, LEFT_OUT_MARKER, matrixLayout, PLOT_CONFIG,
+  query, report, say, stopsEarly, unsafeText,
 } from "./common.js";
 
+const EDGE = "clipped at the detector's edge: left out of the fit";
 const spots = { x: [], y: [], zenith: [], text: [] };
+const clipped = { x: [], y: [], text: [] };
 const seenKeys = new Set(); // the points of the run on the map, so a late catch-up adds each once
 let runId = null;
 // what the progress line shows: the engine's figures, the run's plan (its record) and how the run ended
@@ -13,6 +18,7 @@ const TERMINAL = new Set(["completed", "aborted", "failed", "crashed"]);
 let source = null;
 let drawPending = false;
 let detector = null; // the detector's size (width_px, height_px), from the status
+let engineState = null;
 
 function draw() {
   if (drawPending) return;
@@ -24,22 +30,31 @@ function draw() {
       mode: "markers", name: "spots", x: spots.x, y: spots.y, text: spots.text,
       marker: { size: 5, color: spots.zenith, colorscale: "Viridis", colorbar: { title: { text: "zenith stage [°]" } } },
       hovertemplate: "(%{x:.2f}, %{y:.2f}) px<br>%{text}<extra></extra>",
+    }, {
+      type: "scatter", mode: "markers", name: EDGE, x: clipped.x, y: clipped.y, text: clipped.text,
+      marker: LEFT_OUT_MARKER, hovertemplate: "(%{x:.2f}, %{y:.2f}) px<br>%{text}<extra></extra>",
     }], {
-      ...matrixLayout(runId ? `run ${runId}` : "spots", detector), showlegend: false,
-      datarevision: `${runId}:${spots.x.length}`, // the arrays grow in place: react redraws only on a new revision
+      ...matrixLayout(runId ? `spots of run ${runId}` : "spots", detector),
+      showlegend: clipped.x.length > 0,
+      datarevision: `${runId}:${spots.x.length}:${clipped.x.length}`, // the arrays grow in place: a new revision redraws
     }, PLOT_CONFIG);
   });
 }
 
 function resetSpots() {
   for (const k of Object.keys(spots)) spots[k] = [];
+  for (const k of Object.keys(clipped)) clipped[k] = [];
   seenKeys.clear();
   draw();
 }
 
-function addSpot(x, y, zenith, label) {
+function addSpot(x, y, zenith, label, edge = false) {
   if (x === null || y === null || x === undefined || y === undefined) return;
-  spots.x.push(x); spots.y.push(y); spots.zenith.push(zenith); spots.text.push(label);
+  if (edge) {
+    clipped.x.push(x); clipped.y.push(y); clipped.text.push(`${label}<br>${EDGE}`);
+  } else {
+    spots.x.push(x); spots.y.push(y); spots.zenith.push(zenith); spots.text.push(label);
+  }
 }
 
 function progress(index, total, eta_s) {
@@ -61,34 +76,140 @@ function renderProgress() {
   $("#bound-note").hidden = !bound;
 }
 
-// the run's record says its plan (and whether it has ended); the events do not
+// -- the buttons follow the engine's state ------------------------------------------------------------------
+const ABORTABLE = new Set(["running", "pausing", "paused", "suspended"]);
+
+function followState(state) {
+  engineState = state;
+  $("#engine-state").textContent = state ?? "–";
+  $("#pause").disabled = state !== "running";
+  $("#resume").disabled = !(state === "paused" || state === "pausing");
+  $("#abort").disabled = !(ABORTABLE.has(state) || awaitedMount);
+}
+
+// -- a run that ended without making the bench safe: said first, in red ----------------------------------------
+function showUnsafe(id, text) {
+  const box = $("#unsafe-box");
+  box.hidden = !text;
+  box.textContent = text ? `RUN ${id ?? ""} ENDED UNSAFE: ${text.replace(/^ended unsafe:\s*/, "")}. See to the bench `
+    + "(shutter, lamp, table) before the next run." : "";
+}
+
+// the run's record says its plan (and whether it has ended, and how); the events do not
 async function readRun(id) {
   let run;
-  try { run = await api(`/api/runs/${id}`); } catch (err) { report(err); return; }
-  if (runId !== id) return;
+  try { run = await api(`/api/runs/${id}`); } catch (err) { report(err); return null; }
+  if (runId !== id) return run;
   shown.plan = run.plan_name;
   if (TERMINAL.has(run.status)) shown.ended = run.status;
-  $("#run-title").textContent = `${id} · sensor ${run.sensor_id} · plan ${run.plan_name}`;
+  const ended = TERMINAL.has(run.status) && engineState === "idle" ? ` · ${run.status}` : "";
+  $("#run-title").textContent = `${id} · sensor ${run.sensor_id} · plan ${run.plan_name}${ended}`;
+  if (unsafeText(run)) showUnsafe(id, unsafeText(run));
   renderProgress();
+  return run;
 }
 
 function log(kind, text, when = new Date()) {
   const list = $("#log");
   const time = when.toLocaleTimeString();
   list.prepend(el("li", { class: kind }, `${time} ${kind}: ${text}`));
-  while (list.children.length > 300) list.lastChild.remove();
+  while (list.children.length > 500) list.lastChild.remove();
+}
+
+// a stage result is logged once, whether it came as an event or with the history read on joining
+const loggedResults = new Set();
+
+function logResult(text, when = new Date()) {
+  if (loggedResults.has(text)) return;
+  loggedResults.add(text);
+  log("result", text, when);
 }
 
 function setRun(id, sensor) {
   runId = id;
+  loggedResults.clear();
   Object.assign(shown, { plan: null, ended: null });
   $("#run-title").textContent = id ? `${id}${sensor ? ` · sensor ${sensor}` : ""}` : "– waiting for events";
   $("#result-link").replaceChildren();
+  showUnsafe(null, null);
   if (id) readRun(id);
 }
 
 function finishedLink(id) {
   if (id) $("#result-link").replaceChildren(el("a", { href: `/results?run=${id}` }, `results of run ${id}`));
+}
+
+// -- each point as it lands -----------------------------------------------------------------------------------
+const spotText = (x, y) => `(${fmt(x, 2)}, ${fmt(y, 2)}) px`;
+
+function pointLine(p, edgeFlags) {
+  const where = `table azimuth ${fmt(p.azimuth_deg, 1)}°, zenith stage ${fmt(p.zenith_stage_deg, 2)}°`;
+  const found = p.spots.length ? p.spots.map(([x, y], i) => spotText(x, y) + (edgeFlags[i] ? " clipped at the edge" : ""))
+    .join(", ") : "no spot";
+  return `${p.key} (${p.stage}): ${where} → ${found}`;
+}
+
+function showPoint(d) {
+  const edge = d.spots_clipped || [];
+  $("#n-point").textContent = `${d.key} (${d.index} / ${stopsEarly(shown.plan) ? "at most " : ""}${d.total ?? "–"})`;
+  $("#n-stage").textContent = d.stage;
+  $("#n-table").textContent = `azimuth ${fmt(d.azimuth_deg, 3)}°, zenith stage ${fmt(d.zenith_stage_deg, 3)}°`;
+  $("#n-body").textContent = d.zenith_deg === undefined ? "–"
+    : `zenith ${fmt(d.zenith_deg, 3)}°, azimuth ${fmt(d.azimuth_body_deg, 3)}°`;
+  $("#n-exposure").textContent = d.exposure_ms === null || d.exposure_ms === undefined ? "–" : `${fmt(d.exposure_ms, 3)} ms`;
+  const spotsText = (d.spots || []).map(([x, y], i) => spotText(x, y) + (edge[i] ? ` (${EDGE})` : ""));
+  $("#n-spots").textContent = spotsText.length
+    ? `${spotsText.length} of ${d.n_frames ?? spotsText.length} frames: ${spotsText.join("; ")}` : "no spot found";
+  refreshFrame();
+}
+
+// the latest frame, at most one fetch at a time (points may land faster than frames load)
+let frameBusy = false, frameAgain = false;
+
+async function refreshFrame() {
+  if (frameBusy) { frameAgain = true; return; }
+  frameBusy = true;
+  try { await drawLatestFrame($("#frame"), $("#frame-text")); } catch (_) { /* the status read reports a refusal */ }
+  frameBusy = false;
+  if (frameAgain) { frameAgain = false; setTimeout(refreshFrame, 300); }
+}
+
+// a stage's result (the plan's records: bench/plans.py), in words
+function recordText(key, v) {
+  if (key === "exposure_ms") return `exposure ${fmt(v, 3)} ms (auto-exposure)`;
+  if (key === "centre_px") return v ? `centre (normal incidence) at ${spotText(v[0], v[1])}` : "centre: none found";
+  if (key === "tilt_stage") {
+    return v ? `tilt stage: mean offset ${fmt(v.mean_offset_deg, 3)}°, tilt x ${fmt(v.tilt_x_deg, 3)}°, `
+      + `tilt y ${fmt(v.tilt_y_deg, 3)}°` : "tilt stage: too few azimuths to fit a tilt";
+  }
+  if (key === "physical_design") {
+    return `design: ${v.fit_directions_deg?.length ?? "–"} fit and ${v.check_directions_deg?.length ?? "–"} check `
+      + `directions in ${v.batches?.length ?? "–"} batch(es)`;
+  }
+  if (key.startsWith("physical_batch_")) {
+    return `batch ${key.slice("physical_batch_".length)}: ${v.stop ? "targets met" : "go on"}, check RMS `
+      + `${fmt(v.check_rms_deg, 4)}°`;
+  }
+  if (key === "physical_stop") return `stopped: ${v.reason}`;
+  const text = JSON.stringify(v);
+  return `${key} = ${text.length > 120 ? `${text.slice(0, 120)} …` : text}`;
+}
+
+// the run whose history (points, log, stage results recorded before the page joined) is on the page: a run seen
+// from its "run-started" event has none to read
+let historyOf = null;
+
+// the stage results recorded before the page joined, as log entries: each after the last point of its stage
+// (the exposure before the first point; the physical plan's own log lines already say its batches)
+const STAGE_OF = { centre_px: "centre", tilt_stage: "tilt" };
+
+function recordedResults(values, points) {
+  const times = points.map((p) => [new Date(p.completed_utc), p.stage]);
+  const first = times.length ? new Date(times[0][0] - 1) : new Date();
+  const last = (stage) => times.filter(([, s]) => s === stage).map(([t]) => t).at(-1);
+  return Object.entries(values).filter(([key]) => !key.startsWith("physical_"))
+    .map(([key, value]) => [key === "exposure_ms" ? first : last(STAGE_OF[key]) ?? times.at(-1)?.[0] ?? first, "result",
+      recordText(key, value)]);
 }
 
 // what the bench is doing now, and the points already recorded (joining a run midway)
@@ -97,52 +218,95 @@ async function catchUp() {
   try { status = await api("/api/status"); } catch (err) { report(err); return; }
   const e = status.engine;
   if (status.sensor?.width_px && !detector) { detector = status.sensor; draw(); }
-  $("#engine-state").textContent = e.state;
   showMount(status.mount);
+  followState(e.state);
   offerResume(e.state);
   progress(e.index, e.total, e.eta_s);
-  if (e.run_id && e.run_id !== runId) {
+  if (e.ended_unsafe && (!runId || e.run_id === runId)) showUnsafe(e.run_id, e.ended_unsafe);
+  if (e.run_id && e.run_id !== historyOf) {
     const id = e.run_id;
-    setRun(id, e.sensor_id);
-    resetSpots();
-    let points, runLog;
+    if (runId !== id) { // a point event may have named the run first: its spots stay
+      setRun(id, e.sensor_id);
+      resetSpots();
+    }
+    historyOf = id;
+    if (e.ended_unsafe) showUnsafe(id, e.ended_unsafe);
+    let points, runLog, values;
     try {
-      [points, runLog] = await Promise.all([api(`/api/runs/${id}/points`), api(`/api/runs/${id}/log`)]);
+      [points, runLog, values] = await Promise.all([api(`/api/runs/${id}/points`), api(`/api/runs/${id}/log`),
+        api(`/api/runs/${id}/values`)]);
     } catch (err) { report(err); return; }
     if (runId !== id) return; // another run started while these were on their way: its events own the page
     // points that arrived as events meanwhile are on the map already
-    for (const p of points.data) if (!seenKeys.has(p.key)) addSpot(p.x_px, p.y_px, p.zenith_stage_deg, p.key);
+    const earlier = points.data.filter((p) => !seenKeys.has(p.key));
+    for (const p of earlier) addSpot(p.x_px, p.y_px, p.zenith_stage_deg, p.key, Boolean(p.excluded));
     draw();
     // what happened before the page joined, below what it saw live (the list is newest first)
     const list = $("#log");
     const live = [...list.children];
     list.replaceChildren();
-    for (const entry of runLog.data) log(entry.kind, entry.message, new Date(entry.t_utc));
+    const entries = [...runLog.data.map((entry) => [new Date(entry.t_utc), entry.kind, entry.message]),
+      ...earlier.map((p) => [new Date(p.completed_utc), "point", `${p.key} (${p.stage}): table azimuth `
+        + `${fmt(p.azimuth_deg, 1)}°, zenith stage ${fmt(p.zenith_stage_deg, 2)}° → `
+        + (p.x_px === null ? "no spot" : spotText(p.x_px, p.y_px) + (p.excluded ? ` (${p.excluded})` : ""))])];
+    entries.push(...recordedResults(values.values, points.data));
+    entries.sort((a, b) => a[0] - b[0]);
+    for (const [when, kind, message] of entries) {
+      if (kind === "result") logResult(message, when);
+      else log(kind, message, when);
+    }
     list.prepend(...live);
+    refreshFrame();
     if (e.state === "idle") finishedLink(id);
   } else if (e.run_id && e.state === "idle" && !shown.ended) {
     readRun(e.run_id); // it ended while the stream was away: its record says how
+  } else if (!e.run_id && !runId) {
+    showLastRun(); // none since the server started (a restart): the last one recorded
   }
+}
+
+// after a restart the engine knows no run: the page links the last one (or ?run=N), and says how it ended
+async function showLastRun() {
+  let runs;
+  try { runs = (await api("/api/runs")).data; } catch (_) { return; }
+  const run = runParam ? runs.find((r) => r.id === runParam) : runs.at(-1);
+  if (!run || runId) return;
+  Object.assign(shown, { plan: run.plan_name, ended: run.status });
+  progress(run.n_points_recorded, run.n_points_planned, null);
+  $("#run-title").textContent = `none running · last run ${run.id} · sensor ${run.sensor_id} · plan ${run.plan_name} `
+    + `· ${run.status}`;
+  finishedLink(run.id);
+  if (unsafeText(run)) showUnsafe(run.id, unsafeText(run));
 }
 
 const HANDLERS = {
   queued: (d) => log("queued", `campaign ${d.campaign_id}: ${d.upper_bound ? "at most " : ""}${d.points} points per sensor`),
-  "run-started": (d) => { showMount(null); setRun(d.run_id, d.sensor_id); resetSpots(); progress(0, null, null); log("run-started", `run ${d.run_id} on ${d.sensor_id}`); },
-  state: (d) => { $("#engine-state").textContent = d.state; offerResume(d.state); log("state", `${d.previous} → ${d.state}${d.reason ? ` (${d.reason})` : ""}`); },
+  "run-started": (d) => {
+    showMount(null); setRun(d.run_id, d.sensor_id); resetSpots(); progress(0, null, null);
+    historyOf = d.run_id;
+    log("run-started", `run ${d.run_id} on ${d.sensor_id}`);
+  },
+  state: (d) => { followState(d.state); offerResume(d.state); log("state", `${d.previous} → ${d.state}${d.reason ? ` (${d.reason})` : ""}`); },
   point: (d) => {
     if (d.run_id && d.run_id !== runId) setRun(d.run_id);
     progress(d.index, d.total, d.eta_s);
     seenKeys.add(d.key);
-    for (const [x, y] of d.spots || []) addSpot(x, y, d.zenith_stage_deg, d.key);
+    const edge = d.spots_clipped || [];
+    (d.spots || []).forEach(([x, y], i) => addSpot(x, y, d.zenith_stage_deg, d.key, Boolean(edge[i])));
     draw();
+    showPoint(d);
+    log("point", `${d.index}/${d.total ?? "–"} ${pointLine({ ...d, spots: d.spots || [] }, edge)}`);
   },
+  record: (d) => logResult(recordText(d.key, d.value)),
   log: (d) => log("log", d.message),
   warning: (d) => log("warning", d.message ?? JSON.stringify(d)),
   error: (d) => log("error", d.message ?? JSON.stringify(d)),
+  unsafe: (d) => { showUnsafe(d.run_id ?? runId, d.message); log("error", d.message); },
   finished: (d) => {
     log("finished", `${d.status}${d.reason ? `: ${d.reason}` : ""}`);
     finishedLink(d.run_id ?? runId);
     if (!d.run_id || d.run_id === runId) { shown.ended = d.status; renderProgress(); }
+    if (d.unsafe) showUnsafe(d.run_id ?? runId, d.unsafe);
   },
   "campaign-finished": (d) => {
     log("campaign-finished", `campaign ${d.campaign_id}${d.status ? `: ${d.status}` : ""}${d.reason ? ` (${d.reason})` : ""}`);
@@ -163,6 +327,7 @@ let awaitedMount = null;
 function showMount(mount) {
   awaitedMount = mount || null;
   $("#mount-prompt").hidden = !awaitedMount;
+  followState(engineState);
   if (!awaitedMount) return;
   $("#mount-text").textContent = mount.prompt[0].toUpperCase() + mount.prompt.slice(1);
   $("#resume-box").hidden = true;
@@ -192,7 +357,8 @@ async function offerResume(state) {
   if (!offer) return;
   $("#resume-text").textContent = `Run ${id} (sensor ${run.sensor_id}) ${run.status}`
     + `${run.exit_reason ? `: ${run.exit_reason}` : ""}. It recorded ${run.n_points_recorded} of `
-    + `${run.n_points_planned ?? "–"} points; resuming measures only the missing ones, then the rest of its campaign.`;
+    + `${stopsEarly(run.plan_name) ? "at most " : ""}${run.n_points_planned ?? "–"} points; resuming measures only `
+    + "the missing ones, then the rest of its campaign.";
   $("#resume-run").dataset.run = String(id);
 }
 
@@ -213,7 +379,8 @@ function connect() {
   source.onerror = () => {
     const closed = source.readyState === EventSource.CLOSED;
     $("#stream-state").textContent = closed ? "refused (check the token)" : "reconnecting …";
-    if (closed) say("the event stream was refused: paste the token", true);
+    if (closed) say(getToken() ? "token refused: the event stream refused the token pasted; paste the one in "
+      + "~/.config/sunbench/token" : "no token: paste the token to follow the run", true, "token");
   };
   for (const [kind, handle] of Object.entries(HANDLERS)) {
     source.addEventListener(kind, (message) => {
@@ -227,6 +394,8 @@ async function control(action) {
   try { say((await api(`/api/run/${action}`, { method: "POST" })).message); } catch (err) { report(err); }
 }
 
+// the history (points, log, stage results) is read once the stream is open (connect's onopen): what happens
+// after that comes as events, so nothing falls between the two
 initTokenForm(connect);
 $("#pause").onclick = () => control("pause");
 $("#mount-confirm").onclick = confirmMount;
@@ -234,6 +403,5 @@ $("#resume-run").onclick = resumeRun;
 $("#resume").onclick = () => control("resume");
 $("#abort").onclick = () => { if (confirm("Abort the run? Its recorded points stay.")) control("abort"); };
 draw();
-catchUp();
 connect();
 setInterval(() => { if (!document.hidden) catchUp(); }, 10000);
