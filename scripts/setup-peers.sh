@@ -51,23 +51,6 @@ peer_venv instrumentkit numpy "pyserial>=3.3" "pyvisa>=1.9" "quantities>=0.12.1"
 
 # INDI (Debian's indi-bin): indiserver and the LX200 drivers
 if ! command -v indiserver >/dev/null 2>&1; then
-    if ! command -v apt-get >/dev/null 2>&1; then
-        echo "WARNING: the INDI peer tests need Debian's indi-bin (indiserver, indi_lx200autostar)" >&2
-        exit 0
-    fi
-    sudo=""
-    if [ "$(id -u)" -ne 0 ]; then
-        if ! command -v sudo >/dev/null 2>&1 || ! sudo -n true 2>/dev/null; then
-            echo "WARNING: installing indi-bin needs root: run 'apt-get install indi-bin' as root" >&2
-            exit 0
-        fi
-        sudo="sudo -n"
-    fi
-    echo "installing Debian's indi-bin for the INDI peer tests (once)" >&2
-    export DEBIAN_FRONTEND=noninteractive
-    if ! $sudo apt-get install -y -qq --no-install-recommends indi-bin >/dev/null; then
-        $sudo apt-get update -qq
-        $sudo apt-get install -y -qq --no-install-recommends indi-bin >/dev/null || \
-            echo "WARNING: could not install indi-bin; the INDI peer tests will fail saying so" >&2
-    fi
+    bash scripts/apt-install.sh indi-bin "the INDI peer tests" || \
+        echo "WARNING: no indi-bin; the INDI peer tests will fail saying so" >&2
 fi
