@@ -1,10 +1,12 @@
-"""Fixtures shared by the tests of the bench service and of the web API around it."""
+"""Fixtures shared by the tests of the engine, the bench service and the web API around it."""
 
 import pytest
 
 from bench.benchfile import BenchFile
 from bench.catalogue import Catalogue
+from bench.runner import open_session
 from bench.service import BenchService
+from drivers.sim.bench import SimBenchConfig
 
 
 @pytest.fixture
@@ -14,3 +16,13 @@ def service(tmp_path):
     yield svc
     svc.close()
     svc.catalogue.close()
+
+
+@pytest.fixture
+def session(tmp_path):
+    """An open session on the default simulated bench (seed 5) at time scale 0, its catalogue in tmp_path."""
+    catalogue = Catalogue(tmp_path / "catalogue.sqlite")
+    s = open_session(BenchFile(simulation=SimBenchConfig(time_scale=0.0, seed=5)), catalogue)
+    yield s
+    s.close()
+    catalogue.close()

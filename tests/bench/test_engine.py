@@ -20,15 +20,6 @@ SMALL = Campaign(name="small", frames="none", seed003=Seed003Procedure(
     azimuth_step_deg=90.0, repeats=1, centre_repeats=1, tilt_stage=False))
 
 
-@pytest.fixture
-def session(tmp_path):
-    catalogue = Catalogue(tmp_path / "catalogue.sqlite")
-    s = open_session(BenchFile(simulation=SimBenchConfig(time_scale=0.0, seed=5)), catalogue)
-    yield s
-    s.close()
-    catalogue.close()
-
-
 def _run_in_thread(session, campaign):
     result = {}
     thread = threading.Thread(target=lambda: result.setdefault("runs", run_campaign(campaign, session)))

@@ -23,15 +23,6 @@ from drivers.sim.bench import SimBenchConfig
 PHYSICAL = Campaign(name="physical", plan="physical", frames="none", methods=("physical",))
 
 
-@pytest.fixture
-def session(tmp_path):
-    catalogue = Catalogue(tmp_path / "catalogue.sqlite")
-    s = open_session(BenchFile(simulation=SimBenchConfig(time_scale=0.0, seed=5)), catalogue)
-    yield s
-    s.close()
-    catalogue.close()
-
-
 def _warm(session) -> None:
     """Light the lamp before a run, so the simulated clock then counts the plan's time alone."""
     session.devices.source.lamp_on()
