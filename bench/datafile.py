@@ -21,6 +21,7 @@ from calibration.design import BenchGeometry
 from calibration.errors import BenchDataError, CalibrationFormatError
 from calibration.geometry import incidence_from_stage_angle
 from calibration.models import Calibration, calibration_from_dict
+from calibration.uncertainty import uncertainty_document
 
 _METADATA = re.compile(r"^\s*#\s*(?P<key>[A-Za-z_][A-Za-z0-9_]*)\s*[:=]\s*(?P<value>.+)$")
 
@@ -155,7 +156,11 @@ def read_bench_csv(path, *, bench: BenchGeometry | None = None, sensor_id: str |
     sensor_id : str, optional
         Keep only this sensor's rows (a file may hold a batch).
     """
-    table = read_csv_table(path)
+    return _bench_data(read_csv_table(path), bench, sensor_id)
+
+
+def _bench_data(table: CsvTable, bench: BenchGeometry | None, sensor_id: str | None) -> BenchData:
+    """:func:`read_bench_csv` on a table already read."""
     stage = not all(table.has(c) for c in TRUE_COLUMNS)
     _require(table, SPOT_COLUMNS + (STAGE_COLUMNS if stage else TRUE_COLUMNS))
     if not table.rows:
@@ -250,10 +255,10 @@ def read_bench_frames(path, *, sensor_id: str | None = None) -> BenchFrames:
         metadata[key] = number
     stage = not all(table.has(c) for c in TRUE_COLUMNS)
     if not stage:
-        return BenchFrames(read_bench_csv(path, sensor_id=sensor_id), None, metadata)
+        return BenchFrames(_bench_data(table, None, sensor_id), None, metadata)
     # stage angles: group by the readings; |Ω| with the far side's azimuth keeps a direction's repeats together
     placeholder = BenchGeometry(lever_arm_mm=0.0, source_distance_mm=1.0)
-    data = read_bench_csv(path, bench=placeholder, sensor_id=sensor_id)
+    data = _bench_data(table, placeholder, sensor_id)
     table_rows = data.frame_id - 1
     omega, stage_az = table.numbers("stage_zenith_deg")[table_rows], table.numbers("stage_azimuth_deg")[table_rows]
     return BenchFrames(data, (stage_az, omega), metadata)
@@ -326,8 +331,6 @@ def calibration_document(calibration: Calibration, *, sensor_id: str | None, sou
     (χ²/dof against the repeat scatter, warnings in words), every rejected frame, the bench geometry of
     stage-angle data and the 1σ pointing-uncertainty map of a physical calibration.
     """
-    from calibration.uncertainty import uncertainty_document
-
     document = calibration.to_dict()
     document.update({
         "sensor_id": sensor_id,

@@ -37,7 +37,7 @@ REJECT_SIGMAS = 6.0
 #: Distances below this never reject a frame, whatever the scatter [px] (a scatter of exact synthetic data is 0).
 REJECT_FLOOR_PX = 0.01
 #: Median of the radius of a 2-D Gaussian of unit sigma per axis: √(2 ln 2).
-_RAYLEIGH_MEDIAN = float(np.sqrt(2.0 * np.log(2.0)))
+RAYLEIGH_MEDIAN = float(np.sqrt(2.0 * np.log(2.0)))
 
 
 @dataclass(frozen=True)
@@ -143,7 +143,7 @@ def _scaled_distances(data: BenchData, labels: np.ndarray):
         d = np.hypot(*(xy - np.median(xy, axis=0)).T)
         # the distance to a centre fitted from the same n frames shrinks by √((n − 1)/n)
         factor = _SMALL_N_FACTOR.get(pick.size, 1.0)
-        dist.append(d * factor * np.sqrt(pick.size / (pick.size - 1.0)) / _RAYLEIGH_MEDIAN)
+        dist.append(d * factor * np.sqrt(pick.size / (pick.size - 1.0)) / RAYLEIGH_MEDIAN)
         owner.append(np.full(pick.size, label))
     if not dist:
         return np.empty(0), np.empty(0, dtype=int)

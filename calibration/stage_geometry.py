@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import CalibrationError
+from .pinhole import detector_rotation
 
 #: Geometry parameters the joint fit can estimate, in the order of the parameter vector.
 GEOMETRY_PARAMETERS = ("arm_ratio", "zenith_zero_deg", "source_elevation_deg")
@@ -81,14 +82,6 @@ def _rot_z(deg):
     return np.stack([np.stack([c, -s, zero], -1), np.stack([s, c, zero], -1), np.stack([zero, zero, one], -1)], -2)
 
 
-def _mount_rotation(tilt_x_deg: float, tilt_y_deg: float) -> np.ndarray:
-    """Rotation of the body on its fixture, in the convention of :func:`calibration.pinhole.detector_rotation`."""
-    a, b = np.radians([tilt_x_deg, tilt_y_deg])
-    ry = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
-    rx = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(b), np.sin(b)], [0.0, -np.sin(b), np.cos(b)]])
-    return ry @ rx
-
-
 def body_vectors_from_stage(stage_azimuth_deg, stage_zenith_deg, geometry: StageGeometry) -> np.ndarray:
     """Unit sun vectors in the body frame for stage angles, on an azimuth-on-zenith bench (seed 003).
 
@@ -113,7 +106,8 @@ def body_vectors_from_stage(stage_azimuth_deg, stage_zenith_deg, geometry: Stage
                   np.cos(omega) * np.cos(eta) - geometry.arm_ratio], axis=-1)
     w = np.einsum("...ij,...j->...i", _rot_z(np.asarray(stage_azimuth_deg, dtype=float)), w)
     if geometry.mount_tilt_x_deg or geometry.mount_tilt_y_deg:
-        w = w @ _mount_rotation(geometry.mount_tilt_x_deg, geometry.mount_tilt_y_deg)  # rows: Rᵀ w
+        # the fixture tilts the body as the detector's tilt does (no in-plane turn); rows: Rᵀ w
+        w = w @ detector_rotation(geometry.mount_tilt_x_deg, geometry.mount_tilt_y_deg, 0.0)
     return w / np.linalg.norm(w, axis=-1, keepdims=True)
 
 

@@ -33,6 +33,7 @@ from ..design import DEFAULT_SENSOR, SensorDesign
 from ..errors import CalibrationError, FitError
 from ..geometry import direction_vector, wrap_deg, zenith_azimuth_from_vector
 from ..pinhole import PinholeBuild, direction_from_spot, spot_from_vectors
+from ..repeats import RAYLEIGH_MEDIAN
 from ..stage_geometry import GEOMETRY_PARAMETERS, GeometryPrior, StageGeometry, StageGeometryError, body_vectors_from_stage
 from .base import Calibration
 
@@ -43,8 +44,6 @@ FITTED = ("x0_px", "y0_px", "gap_mm", "glass_mm", "tilt_x_deg", "tilt_y_deg", "r
 
 #: A point farther than this many noise sigmas from the model is an outlier.
 OUTLIER_SIGMAS = 6.0
-#: Median of the radius of a 2-D Gaussian of unit sigma per axis, √(2 ln 2).
-_RAYLEIGH_MEDIAN = float(np.sqrt(2.0 * np.log(2.0)))
 
 
 def _initial_build(data: BenchData, design: SensorDesign, glass_index: float) -> PinholeBuild:
@@ -206,7 +205,7 @@ class PhysicalFit:
 
 def _robust_scale(distance_px: np.ndarray) -> float:
     """Per-axis sigma from 2-D residual distances, robust to a minority of outliers [px]."""
-    return float(np.median(distance_px) / _RAYLEIGH_MEDIAN)
+    return float(np.median(distance_px) / RAYLEIGH_MEDIAN)
 
 
 def fit_physical(data: BenchData, design: SensorDesign = DEFAULT_SENSOR, *, glass_index: float = 1.52,
@@ -257,7 +256,8 @@ def fit_physical(data: BenchData, design: SensorDesign = DEFAULT_SENSOR, *, glas
     measured = np.concatenate([data.x_px, data.y_px])
     pitch = design.pixel_pitch_mm
     given_noise = noise_px is not None
-    noise = np.broadcast_to(np.asarray(noise_px if given_noise else 1.0, dtype=float), data.x_px.shape).copy()
+    # residuals are always in noise sigmas; without repeats the noise is a guess, then the residuals' own scale
+    noise = np.broadcast_to(np.asarray(noise_px if given_noise else 0.2, dtype=float), data.x_px.shape).copy()
 
     def unpack(p):
         build = dataclasses.replace(start, **dict(zip(names[:n_build], p[:n_build])))
@@ -274,7 +274,7 @@ def fit_physical(data: BenchData, design: SensorDesign = DEFAULT_SENSOR, *, glas
         r = (np.concatenate([x, y]) - measured) / np.concatenate([noise, noise])
         r = r * np.concatenate([weight, weight])
         if ratio_prior is not None and "arm_ratio" in names:
-            r = np.append(r, (p[names.index("arm_ratio")] - ratio_prior[0]) / ratio_prior[1] / scale)
+            r = np.append(r, (p[names.index("arm_ratio")] - ratio_prior[0]) / ratio_prior[1])
         return r
 
     bounds = {"gap_mm": (1e-3, 10.0), "glass_mm": (0.0, 10.0), "tilt_x_deg": (-10.0, 10.0),
@@ -293,21 +293,17 @@ def fit_physical(data: BenchData, design: SensorDesign = DEFAULT_SENSOR, *, glas
         x, y = spots(p)
         return np.hypot(x - data.x_px, y - data.y_px)
 
-    # 1. robust pass: soft-L1 with the noise as the scale (a first guess of 0.2 px when there is none)
-    scale = 1.0 if given_noise else 0.2
-    result = least_squares(residuals, p0, args=(keep.astype(float),), loss="soft_l1", f_scale=scale, **options)
-    if not given_noise:  # the residuals' robust scale, then once more with it
-        scale = max(_robust_scale(distances(result.x)), 1e-4)
-        result = least_squares(residuals, result.x, args=(keep.astype(float),), loss="soft_l1", f_scale=scale,
-                               **options)
+    # 1. robust pass: soft-L1 at one noise sigma (without repeats: at the guess, then at the residuals' scale)
+    result = least_squares(residuals, p0, args=(keep.astype(float),), loss="soft_l1", **options)
+    if not given_noise:
+        noise[:] = max(_robust_scale(distances(result.x)), 1e-4)
+        result = least_squares(residuals, result.x, args=(keep.astype(float),), loss="soft_l1", **options)
     # 2. outliers: judged against the noise, or the residuals' own scale when the model misses by more
     dist = distances(result.x)
-    judge = np.maximum(noise * (1.0 if given_noise else 0.0), _robust_scale(dist))
-    keep = dist <= OUTLIER_SIGMAS * judge
+    keep = dist <= OUTLIER_SIGMAS * np.maximum(noise, _robust_scale(dist))
     if keep.sum() < model.min_points:
         keep[:] = True
     # 3. plain least squares on the rest: the estimate, its covariance and χ²
-    scale = 1.0
     result = least_squares(residuals, result.x, args=(keep.astype(float),), xtol=1e-12, ftol=1e-12, gtol=1e-12,
                            **options)
     if not result.success:

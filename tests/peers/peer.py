@@ -24,13 +24,27 @@ def peer_python(name: str) -> Path:
     return python
 
 
+#: What every peer script has: ``timed(name, call, *args, **kwargs)`` calls and records in ``calls[name]`` the
+#: longest wall time [s] that call took, so a test can assert no client waited on a timeout.
+_PRELUDE = """\
+import json, time
+calls = {}
+def timed(name, call, *args, **kwargs):
+    t0 = time.monotonic()
+    value = call(*args, **kwargs)
+    calls[name] = max(calls.get(name, 0.0), time.monotonic() - t0)
+    return value
+"""
+
+
 def run_peer(name: str, script: str, *, timeout_s: float = 60.0, **values) -> dict:
-    """Run `script` (dedented) with the peer's interpreter; `values` are given to it as the dict ``ARGS``.
+    """Run `script` (dedented) with the peer's interpreter; `values` are given to it as the dict ``ARGS``, and
+    ``timed`` and ``calls`` of the prelude (above) are defined.
 
     The script prints one JSON object on its last line; that object is returned. A non-zero exit or a
     timeout fails the test with the script's output.
     """
-    code = f"import json\nARGS = json.loads({json.dumps(json.dumps(values))})\n" + textwrap.dedent(script)
+    code = _PRELUDE + f"ARGS = json.loads({json.dumps(json.dumps(values))})\n" + textwrap.dedent(script)
     result = subprocess.run([str(peer_python(name)), "-c", code], capture_output=True, text=True,
                             timeout=timeout_s, cwd=ROOT)
     if result.returncode != 0:

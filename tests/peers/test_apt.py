@@ -94,12 +94,6 @@ PYLABLIB_SESSION = """
 import time
 from pylablib.devices import Thorlabs
 
-calls = {}
-def timed(name, call, *args, **kwargs):
-    t0 = time.monotonic()
-    value = call(*args, **kwargs)
-    calls[name] = time.monotonic() - t0
-    return value
 
 def wait(stage, t0):  # wait_move polls the status bits every 50 ms; returns the time since t0
     stage.wait_move(timeout=10.0)
@@ -225,12 +219,6 @@ def counting_read_message(self, timeout):  # QMI sleeps `timeout` first when < 6
     return read_message(self, timeout)
 apt_protocol.AptProtocol.read_message = counting_read_message
 
-calls = {}
-def timed(name, call, *args):
-    t0 = time.monotonic()
-    value = call(*args)
-    calls[name] = time.monotonic() - t0
-    return value
 
 def wait(stage, t0):  # returns the time since t0
     stage.wait_move_complete(10.0)

@@ -40,12 +40,6 @@ spec = importlib.util.spec_from_file_location("newport69907", path)
 module = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(module)
 
-calls = {}
-def timed(name, call, *args):
-    t0 = time.monotonic()
-    value = call(*args)
-    calls[name] = max(calls.get(name, 0.0), time.monotonic() - t0)
-    return value
 get = lambda inst, name: timed(name, getattr, inst, name)
 put = lambda inst, name, value: timed(name + "=", setattr, inst, name, value)
 

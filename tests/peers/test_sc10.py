@@ -32,12 +32,6 @@ PREAMBLE = """
 import time
 import instruments as ik
 
-calls = {}
-def timed(name, call, *args):
-    t0 = time.monotonic()
-    value = call(*args)
-    calls[name] = max(calls.get(name, 0.0), time.monotonic() - t0)
-    return value
 get = lambda sc, name: timed(name, getattr, sc, name)
 put = lambda sc, name, value: timed(name + "=", setattr, sc, name, value)
 

@@ -64,12 +64,6 @@ PYVISA_SESSION = """
 import time
 import pyvisa
 
-calls = {}
-def timed(name, call, *args, **kwargs):
-    t0 = time.monotonic()
-    value = call(*args, **kwargs)
-    calls[name] = max(calls.get(name, 0.0), time.monotonic() - t0)
-    return value
 
 out = {}
 rm = pyvisa.ResourceManager("@py")
@@ -147,12 +141,6 @@ PYMEASURE_SESSION = """
 import time
 from pymeasure.instruments.keysight import KeysightE3631A
 
-calls = {}
-def timed(name, call, *args, **kwargs):
-    t0 = time.monotonic()
-    value = call(*args, **kwargs)
-    calls[name] = max(calls.get(name, 0.0), time.monotonic() - t0)
-    return value
 
 out = {}
 psu = timed("connect", KeysightE3631A, ARGS["resource"], read_termination="\\n", write_termination="\\n",

@@ -35,12 +35,6 @@ import time
 from pystages.smc100 import SMC100
 from pystages.vector import Vector
 
-calls = {}
-def timed(name, call, *args):
-    t0 = time.monotonic()
-    value = call(*args)
-    calls[name] = time.monotonic() - t0
-    return value
 
 def wait(stage):
     # wait_move_finished() polls the same way; counting the polls that saw motion shows the move took time
@@ -130,12 +124,6 @@ from qmi.instruments.newport.smc_100cc import Newport_SMC100CC
 Newport_SMC100CC.COMMAND_EXEC_TIME = 0.0
 Newport_SMC100CC.PW0_EXEC_TIME = 0.0
 
-calls = {}
-def timed(name, call, *args):
-    t0 = time.monotonic()
-    value = call(*args)
-    calls[name] = time.monotonic() - t0
-    return value
 
 def wait(smc):
     moving_polls = 0
