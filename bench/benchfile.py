@@ -41,6 +41,7 @@ from drivers.sim.bench import SimBenchConfig
 from drivers.sim.lamp import LED
 from drivers.sources import ARC_WARMUP_S, LED_WARMUP_S
 
+from .interlocks import DEFAULT_INTERLOCKS, Interlocks
 from .yamlfile import read_yaml
 
 #: The literal URL that names the simulated device (the same as omitting the URL).
@@ -290,7 +291,15 @@ class CameraSensorConfig(_Strict):
     exposure_ms: float | None = Field(None, gt=0)
 
 
-SensorConfig = Annotated[Union[CmosSensorConfig, CameraSensorConfig], Field(discriminator="kind")]
+class QdSensorConfig(_Strict):
+    """The quadrant-photodiode sun-sensor module of seed 002 (framed binary protocol, drivers.qd_protocol)."""
+
+    kind: Literal["qd"] = "qd"
+    url: Url = None
+    timeout_s: float = Field(1.0, gt=0)
+
+
+SensorConfig = Annotated[Union[CmosSensorConfig, CameraSensorConfig, QdSensorConfig], Field(discriminator="kind")]
 
 
 class DevicesConfig(_Strict):
@@ -318,20 +327,41 @@ class DevicesConfig(_Strict):
 
 # -- geometry and interlocks ----------------------------------------------------------------------------
 class GeometryConfig(_Strict):
-    """The bench geometry the bench believes (seed 003 eq. 8), not the simulated truth."""
+    """The bench geometry the bench believes (seed 003 eq. 8), not the simulated truth.
+
+    The schema of the fields of :class:`calibration.design.BenchGeometry` a bench file states (their
+    defaults and checks are the value type's); :meth:`bench_geometry` builds the value."""
 
     lever_arm_mm: float = Field(DEFAULT_BENCH.lever_arm_mm, ge=0)
     source_distance_mm: float = Field(DEFAULT_BENCH.source_distance_mm, gt=0)
     # 1σ of the two lengths as measured; the fit at a run's end combines them with what the spots say
-    lever_arm_sd_mm: float | None = Field(None, gt=0)
-    source_distance_sd_mm: float | None = Field(None, gt=0)
+    lever_arm_sd_mm: float | None = Field(DEFAULT_BENCH.lever_arm_sd_mm, gt=0)
+    source_distance_sd_mm: float | None = Field(DEFAULT_BENCH.source_distance_sd_mm, gt=0)
+
+    @model_validator(mode="after")
+    def _physical(self):
+        self.bench_geometry()  # the value type's own checks, at load time
+        return self
+
+    def bench_geometry(self, source_diameter_deg: float = DEFAULT_BENCH.source_diameter_deg) -> BenchGeometry:
+        """The believed geometry as :class:`calibration.design.BenchGeometry`; the source's size is not part of
+        the belief (eq. 8 does not use it), so it is given."""
+        return BenchGeometry(**self.model_dump(), source_diameter_deg=source_diameter_deg)
 
 
 class InterlocksConfig(_Strict):
-    """Conditions that suspend a run."""
+    """Conditions that suspend a run: the bench file's part of :class:`bench.interlocks.Interlocks`, which
+    :meth:`interlocks` builds."""
 
-    sensor_max_temperature_c: float = Field(60.0, allow_inf_nan=False)
-    lamp_fault: bool = True  # a lamp fault suspends the run
+    sensor_max_temperature_c: float = Field(DEFAULT_INTERLOCKS.sensor_max_temperature_c, allow_inf_nan=False)
+    lamp_fault: bool = DEFAULT_INTERLOCKS.lamp_fault  # a lamp fault suspends the run
+
+    def interlocks(self, *, enclosure_open=None, poll_s: float = DEFAULT_INTERLOCKS.poll_s,
+                   hold_off_s: float = DEFAULT_INTERLOCKS.hold_off_s) -> Interlocks:
+        """The engine's interlocks: this section's limits with the bench's door switch (``enclosure_open()``,
+        None when it has none) and how often and how long a suspended run looks at them [s]
+        (:data:`bench.interlocks.SIMULATED_TIMING` on a simulated bench)."""
+        return Interlocks(**self.model_dump(), enclosure_open=enclosure_open, poll_s=poll_s, hold_off_s=hold_off_s)
 
 
 # -- the file -------------------------------------------------------------------------------------------
@@ -385,6 +415,13 @@ class BenchFile(_Strict):
                 devices[role] = {**device, "kind": sim[sim_key]}
             elif sim_key not in sim and device.get("kind") in kinds:
                 sim[sim_key] = device["kind"]
+        sensor = devices.get("sensor")
+        sensor = {} if sensor is None else sensor
+        if isinstance(sensor, dict):  # the sensor's kind follows the simulated family, and the other way round
+            if "kind" not in sensor and sim.get("family") in ("cmos", "qd"):
+                devices["sensor"] = {**sensor, "kind": sim["family"]}
+            elif "family" not in sim and sensor.get("kind") in ("cmos", "qd"):
+                sim["family"] = sensor["kind"]
         data["simulation"], data["devices"] = sim, devices
         try:
             truth = SimBenchConfig.model_validate(sim)
@@ -410,6 +447,10 @@ class BenchFile(_Strict):
             elif table.kind != self.simulation.table:
                 problems.append((("devices", "table", "kind"), f"{table.kind!r} does not match simulation.table "
                                                                f"{self.simulation.table!r}"))
+            sensor = self.devices.sensor
+            if sensor.kind in ("cmos", "qd") and sensor.kind != self.simulation.family:
+                problems.append((("devices", "sensor", "kind"), f"{sensor.kind!r} does not match simulation.family "
+                                                                f"{self.simulation.family!r}"))
             if source.kind != self.simulation.source:
                 problems.append((("devices", "source", "kind"), f"{source.kind!r} does not match simulation.source "
                                                                 f"{self.simulation.source!r}"))
@@ -438,7 +479,7 @@ class BenchFile(_Strict):
                     (("devices", "source", "shutter_url"), source.shutter_url)]
         else:
             out.append((("devices", "source", "url"), source.url))
-        if self.devices.sensor.kind == "cmos":
+        if self.devices.sensor.kind in ("cmos", "qd"):
             out.append((("devices", "sensor", "url"), self.devices.sensor.url))
         return out
 
@@ -448,10 +489,9 @@ class BenchFile(_Strict):
         The source diameter is not part of the belief (eq. 8 does not use it): the simulation's when
         simulated, else the design default.
         """
-        diameter = (self.simulation.geometry.source_diameter_deg if self.simulation is not None
-                    else DEFAULT_BENCH.source_diameter_deg)
-        return BenchGeometry(lever_arm_mm=self.geometry.lever_arm_mm,
-                             source_distance_mm=self.geometry.source_distance_mm, source_diameter_deg=diameter)
+        if self.simulation is None:
+            return self.geometry.bench_geometry()
+        return self.geometry.bench_geometry(self.simulation.geometry.source_diameter_deg)
 
     @property
     def simulated(self) -> bool:

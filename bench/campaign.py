@@ -9,13 +9,22 @@ from __future__ import annotations
 from types import UnionType
 from typing import Literal, Union, get_args, get_origin
 
-import numpy as np
-
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from calibration.models import METHODS
+from calibration.procedure import (
+    SEED003_AZIMUTH_STEP_DEG,
+    SEED003_AZIMUTHS_DEG,
+    SEED003_CENTRE_REPEATS,
+    SEED003_REPEATS,
+    SEED003_ZENITH_STAGE_DEG,
+    grid_azimuths_deg,
+)
 
 from .yamlfile import field_problems, read_yaml
+
+#: The QD family's fits (calibration.qd)
+QD_METHODS = ("geometric", "polynomial", "physical")
 
 
 class CampaignFileError(Exception):
@@ -72,10 +81,10 @@ class AutoExposure(_Strict):
 class Seed003Procedure(_Strict):
     """The seed 003 calibration procedure (§4.2 and the revised §4.4–4.5)."""
 
-    azimuth_step_deg: float = Field(45.0, ge=0.5, le=180)
-    zenith_stage_deg: tuple[float, ...] = Field((0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0), max_length=MAX_LIST)
-    repeats: int = Field(4, ge=1, le=100)
-    centre_repeats: int = Field(5, ge=1, le=100)
+    azimuth_step_deg: float = Field(SEED003_AZIMUTH_STEP_DEG, ge=0.5, le=180)
+    zenith_stage_deg: tuple[float, ...] = Field(SEED003_ZENITH_STAGE_DEG, max_length=MAX_LIST)
+    repeats: int = Field(SEED003_REPEATS, ge=1, le=100)
+    centre_repeats: int = Field(SEED003_CENTRE_REPEATS, ge=1, le=100)
     tilt_stage: bool = True
     tilt_probe_deg: float = Field(1.0, gt=0, le=5)
     tilt_repeats: int = Field(3, ge=1, le=100)
@@ -88,14 +97,17 @@ class Seed003Procedure(_Strict):
             raise ValueError("a 6th-order θ(r) needs at least 7 zenith angles")
         return v
 
+    @property
+    def azimuths_deg(self) -> tuple[float, ...]:
+        """The azimuths of every stage: a full turn in `azimuth_step_deg` steps [°]."""
+        return tuple(float(a) for a in grid_azimuths_deg(self.azimuth_step_deg))
+
 
 class GridProcedure(_Strict):
     """A plain grid: every azimuth at every zenith-stage angle."""
 
-    azimuths_deg: tuple[float, ...] = Field(tuple(float(a) for a in range(0, 360, 45)), min_length=1,
-                                            max_length=MAX_LIST)
-    zenith_stage_deg: tuple[float, ...] = Field((0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0), min_length=1,
-                                                max_length=MAX_LIST)
+    azimuths_deg: tuple[float, ...] = Field(SEED003_AZIMUTHS_DEG, min_length=1, max_length=MAX_LIST)
+    zenith_stage_deg: tuple[float, ...] = Field(SEED003_ZENITH_STAGE_DEG, min_length=1, max_length=MAX_LIST)
     repeats: int = Field(1, ge=1, le=100)
     order: Literal["zenith-outer", "azimuth-outer"] = "zenith-outer"
     auto_exposure: AutoExposure = AutoExposure()
@@ -138,6 +150,46 @@ class PhysicalProcedure(_Strict):
         return self.first_batch + (self.max_batches - 1) * self.batch_size + self.check_directions
 
 
+class QdDarkSweep(_Strict):
+    """Dark current over temperature, shutter closed (seed 002 §2.1: linear in temperature per quadrant): the
+    module's thermal control is set to each temperature in turn and `repeats` readings are taken there."""
+
+    temperatures_c: tuple[float, ...] = Field((10.0, 20.0, 30.0, 40.0), max_length=50)
+    repeats: int = Field(8, ge=1, le=100)
+    tolerance_c: float = Field(0.2, gt=0, le=5)
+
+    @field_validator("temperatures_c")
+    @classmethod
+    def _enough(cls, v):
+        if 0 < len(v) < 2:
+            raise ValueError("a slope needs at least two temperatures (or none: no dark sweep)")
+        return v
+
+
+class QdGridProcedure(_Strict):
+    """Seed 002's calibration: a square grid of the sensor's projection angles α, β over ±`field_deg` (the
+    thesis' field is ±40°), set through the table's kinematics (calibration.qd.angles), with check points at
+    the centres of the grid's cells, never fitted (the thesis warns that the error between nodes can exceed
+    the error at them), after the dark sweep."""
+
+    field_deg: float = Field(40.0, gt=0, le=60)
+    step_deg: float = Field(5.0, ge=0.5, le=40)
+    check_points: bool = True
+    repeats: int = Field(3, ge=1, le=100)
+    temperature_c: float | None = Field(25.0, ge=-40, le=70)  # the die's temperature during the grid; None: TEC off
+    dark: QdDarkSweep = QdDarkSweep()
+
+    @property
+    def nodes_deg(self) -> tuple[float, ...]:
+        """Grid nodes along each axis [°], symmetric about 0 and reaching ±field_deg."""
+        n = int(round(2 * self.field_deg / self.step_deg))
+        return tuple(float(-self.field_deg + 2 * self.field_deg * i / n) for i in range(n + 1))
+
+    def points(self) -> int:
+        k = len(self.nodes_deg)
+        return k * k + (k - 1) ** 2 * self.check_points + len(self.dark.temperatures_c)
+
+
 class Alignment(_Strict):
     """Caliper readings of the bench alignment (seed 003 §4.1), checked before anything moves.
 
@@ -156,22 +208,27 @@ class Campaign(_Strict):
     """A campaign: a procedure run on one sensor or on a fleet (a flight batch is ten)."""
 
     name: str = Field(min_length=1)
-    plan: Literal["seed003", "grid", "physical"] = "seed003"
+    plan: Literal["seed003", "grid", "physical", "qd-grid", "qd-dark"] = "seed003"
     operator: str = "unknown"
     sensors: tuple[str, ...] = Field(("SIM-0001",), min_length=1, max_length=MAX_SENSORS)
     frames: Literal["roi", "full", "none"] = "roi"
     seed003: Seed003Procedure = Seed003Procedure()
     grid: GridProcedure = GridProcedure()
     physical: PhysicalProcedure = PhysicalProcedure()
+    qd_grid: QdGridProcedure = QdGridProcedure()
+    qd_dark: QdDarkSweep = QdDarkSweep()
     alignment: Alignment | None = None
-    methods: tuple[str, ...] = tuple(METHODS)
+    methods: tuple[str, ...] | None = None  # the fits at the run's end; None: every method of the sensor family
 
     @field_validator("methods")
     @classmethod
-    def _methods(cls, v):
-        unknown = [m for m in v if m not in METHODS]
-        if unknown:
-            raise ValueError(f"unknown method(s) {unknown}; known: {list(METHODS)}")
+    def _methods(cls, v, info):
+        if v is not None:
+            plan = info.data.get("plan", "seed003")
+            known = QD_METHODS if plan.startswith("qd-") else tuple(METHODS)
+            unknown = [m for m in v if m not in known]
+            if unknown:
+                raise ValueError(f"unknown method(s) {unknown}; known for the {plan} plan: {list(known)}")
         return v
 
     @model_validator(mode="after")
@@ -193,10 +250,13 @@ class Campaign(_Strict):
         """Points per sensor the plan will measure at most, from its fields alone."""
         if self.plan == "seed003":
             p = self.seed003
-            azimuths = int(np.ceil(360.0 / p.azimuth_step_deg - 1e-9))
-            return azimuths * (1 + 2 * p.tilt_stage + len(p.zenith_stage_deg))
+            return len(p.azimuths_deg) * (1 + 2 * p.tilt_stage + len(p.zenith_stage_deg))
         if self.plan == "grid":
             return len(self.grid.azimuths_deg) * len(self.grid.zenith_stage_deg)
+        if self.plan == "qd-grid":
+            return self.qd_grid.points()
+        if self.plan == "qd-dark":
+            return len(self.qd_dark.temperatures_c)
         return self.physical.max_points
 
 

@@ -38,9 +38,12 @@ import os
 import sqlite3
 import sys
 import threading
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path, PurePosixPath
-from typing import Any, Iterable, Iterator
+from typing import Any
+
+from .descriptor import DescriptorError, ReadingDescriptor, ReadingRecord
 
 try:  # the single-writer lock; without fcntl (Windows) the rule is only documented
     import fcntl
@@ -73,11 +76,21 @@ _RUN_TRANSITIONS = {
 # The start document must say where the data came from (research note, lesson 4).
 REQUIRED_PROVENANCE = ("bench_config_hash", "software_version", "devices", "simulated", "operator")
 
-# Fields of a reading as record_point() takes them, with their defaults (None: SQL NULL).
-READING_FIELDS = {"repeat": None, "x_px": None, "y_px": None, "peak_dn": None, "n_pixels": None, "flags": 0,
-                  "status": "ok", "frame_path": None, "t_s": None}
-_READING_REAL = ("x_px", "y_px", "peak_dn", "t_s")
-_READING_INT = ("repeat", "n_pixels", "flags")
+# Fields every family's reading has, as record_point() takes them, with their defaults (None: SQL NULL); any
+# other key of a reading is a field of the run's family, checked against the run's descriptor.
+READING_FIELDS = {"repeat": None, "status": "ok", "frame_path": None, "t_s": None}
+
+# The reading of schema version 1, which knew only the CMOS pinhole family: its runs get this descriptor when
+# version 2 moves their spot columns into ``values_json`` (a fact of history, kept as it was written; the
+# family's current descriptor is bench.families.cmos.DESCRIPTOR).
+V1_CMOS_DESCRIPTOR = {"family": "cmos", "version": 1, "fields": [
+    {"name": "x_px", "dtype": "number", "unit": "px", "shape": [], "required": True, "doc": "spot centre, column"},
+    {"name": "y_px", "dtype": "number", "unit": "px", "shape": [], "required": True, "doc": "spot centre, row"},
+    {"name": "peak_dn", "dtype": "number", "unit": "DN", "shape": [], "required": False, "doc": "brightest pixel"},
+    {"name": "n_pixels", "dtype": "integer", "unit": "", "shape": [], "required": False,
+     "doc": "pixels in the spot"},
+    {"name": "flags", "dtype": "integer", "unit": "", "shape": [], "required": False,
+     "doc": "calibration.centroid.SpotFlag bits"}]}
 
 _POINT_FIELDS = ("azimuth_deg", "zenith_stage_deg", "zenith_deg", "azimuth_body_deg")
 
@@ -196,6 +209,30 @@ _MIGRATIONS: dict[int, tuple[str, ...]] = {
             PRIMARY KEY (run_id, key)
         )""",
     ),
+    # Sensor families: a run says which family it measured and carries its reading descriptor; readings keep
+    # the fields every family shares as columns and the family's own values as JSON (bench.descriptor).
+    2: (
+        "ALTER TABLE runs ADD COLUMN family TEXT NOT NULL DEFAULT 'cmos' CHECK (family <> '')",
+        "ALTER TABLE runs ADD COLUMN descriptor_json TEXT",
+        f"UPDATE runs SET descriptor_json = '{json.dumps(V1_CMOS_DESCRIPTOR)}'",
+        """CREATE TABLE readings_v2 (
+            id INTEGER PRIMARY KEY,
+            point_id INTEGER NOT NULL REFERENCES points(id),
+            repeat INTEGER NOT NULL CHECK (repeat >= 0),
+            status TEXT NOT NULL CHECK (status <> ''),
+            frame_path TEXT,
+            t_s REAL NOT NULL,
+            values_json TEXT NOT NULL,
+            UNIQUE (point_id, repeat)
+        )""",
+        """INSERT INTO readings_v2 (id, point_id, repeat, status, frame_path, t_s, values_json)
+           SELECT id, point_id, repeat, status, frame_path, t_s,
+                  json_object('x_px', x_px, 'y_px', y_px, 'peak_dn', peak_dn, 'n_pixels', n_pixels, 'flags', flags)
+           FROM readings""",
+        "DROP TABLE readings",
+        "ALTER TABLE readings_v2 RENAME TO readings",
+        "CREATE INDEX runs_by_family ON runs(family)",
+    ),
 }
 SCHEMA_VERSION = max(_MIGRATIONS)
 
@@ -206,13 +243,13 @@ class CatalogueError(Exception):
 
 def utc_now() -> str:
     """The current time as an ISO 8601 UTC string with microseconds and a ``Z``."""
-    return _iso(dt.datetime.now(dt.timezone.utc))
+    return _iso(dt.datetime.now(dt.UTC))
 
 
 def _iso(moment: dt.datetime) -> str:
     if moment.tzinfo is None:
         raise CatalogueError(f"timestamp {moment.isoformat()} has no time zone; pass an aware UTC datetime")
-    return moment.astimezone(dt.timezone.utc).isoformat(timespec="microseconds").replace("+00:00", "Z")
+    return moment.astimezone(dt.UTC).isoformat(timespec="microseconds").replace("+00:00", "Z")
 
 
 def _json_default(value):
@@ -430,7 +467,7 @@ class Catalogue:
                 self._lock_file.close()  # closing the file releases the flock
                 self._lock_file = None
 
-    def __enter__(self) -> "Catalogue":
+    def __enter__(self) -> Catalogue:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -481,8 +518,8 @@ class Catalogue:
         return rows[0] if rows else None
 
     def _run_row(self, conn: sqlite3.Connection, run_id: int) -> sqlite3.Row:
-        row = conn.execute("SELECT id, status, sensor_id, campaign_id, started_utc FROM runs WHERE id = ?",
-                           (run_id,)).fetchone()
+        row = conn.execute("SELECT id, status, sensor_id, campaign_id, started_utc, descriptor_json "
+                           "FROM runs WHERE id = ?", (run_id,)).fetchone()
         if row is None:
             raise CatalogueError(f"no run {run_id}")
         return row
@@ -531,7 +568,8 @@ class Catalogue:
     def campaigns(self) -> list[dict]:
         """Every campaign, oldest first, each with ``n_runs`` (runs linked to it)."""
         return [_row(r) for r in self._all(
-            "SELECT c.*, (SELECT count(*) FROM runs WHERE campaign_id = c.id) AS n_runs FROM campaigns c ORDER BY c.id")]
+            "SELECT c.*, (SELECT count(*) FROM runs WHERE campaign_id = c.id) AS n_runs "
+            "FROM campaigns c ORDER BY c.id")]
 
     def set_campaign_status(self, campaign_id: int, status: str) -> None:
         """Set a campaign's status, one of :data:`CAMPAIGN_STATUSES`."""
@@ -573,7 +611,8 @@ class Catalogue:
                                  (campaign_id,)).fetchone()[0]
             now = utc_now()
             positions = list(range(start, start + len(sensor_ids)))
-            conn.executemany("INSERT INTO fleet_queue (campaign_id, position, sensor_id, updated_utc) VALUES (?, ?, ?, ?)",
+            conn.executemany("INSERT INTO fleet_queue (campaign_id, position, sensor_id, updated_utc) "
+                             "VALUES (?, ?, ?, ?)",
                              [(campaign_id, p, s, now) for p, s in zip(positions, sensor_ids)])
             return positions
 
@@ -640,7 +679,8 @@ class Catalogue:
 
     # --- runs -------------------------------------------------------------------------------------------
     def create_run(self, *, campaign_id: int | None, sensor_id: str, plan_name: str, plan_args: dict,
-                   provenance: dict, parent_run_id: int | None = None, n_points_planned: int | None = None) -> int:
+                   provenance: dict, descriptor: ReadingDescriptor, parent_run_id: int | None = None,
+                   n_points_planned: int | None = None) -> int:
         """Create a run in status "created" and journal it.
 
         Parameters
@@ -656,8 +696,10 @@ class Catalogue:
             Must hold every key of :data:`REQUIRED_PROVENANCE` — ``bench_config_hash``, ``software_version``,
             ``devices`` (identities, e.g. ``*IDN?`` and firmware per device), ``simulated`` (bool),
             ``operator`` — and may hold more (git SHA, package versions ...).
+        descriptor : bench.descriptor.ReadingDescriptor
+            What one reading of the run's sensor family is; every reading recorded is checked against it.
         parent_run_id : int, optional
-            The interrupted run this one resumes; it must be of the same sensor.
+            The interrupted run this one resumes; it must be of the same sensor and family.
         n_points_planned : int, optional
             Number of points the plan expands to (for progress).
 
@@ -677,24 +719,32 @@ class Catalogue:
             raise CatalogueError(f"provenance 'simulated' must be true or false, not {provenance['simulated']!r}")
         if n_points_planned is not None and (not isinstance(n_points_planned, int) or n_points_planned < 0):
             raise CatalogueError(f"n_points_planned must be a non-negative integer, not {n_points_planned!r}")
+        if not isinstance(descriptor, ReadingDescriptor):
+            raise CatalogueError(f"descriptor must be a ReadingDescriptor, not {type(descriptor).__name__}")
         args_json, provenance_json = _dumps(plan_args, "plan_args"), _dumps(provenance, "provenance")
+        descriptor_json = _dumps(descriptor.to_json(), "descriptor")
         with self._write(f"create a run of {sensor_id}") as conn:
             if campaign_id is not None:
                 self._campaign_exists(conn, campaign_id)
             if parent_run_id is not None:
-                parent = conn.execute("SELECT sensor_id FROM runs WHERE id = ?", (parent_run_id,)).fetchone()
+                parent = conn.execute("SELECT sensor_id, family FROM runs WHERE id = ?", (parent_run_id,)).fetchone()
                 if parent is None:
                     raise CatalogueError(f"no run {parent_run_id} (given as parent)")
+                if parent["family"] != descriptor.family:
+                    raise CatalogueError(f"parent run {parent_run_id} measured a {parent['family']} sensor, not a "
+                                         f"{descriptor.family} one; a resumed run continues the same family")
                 if parent["sensor_id"] != sensor_id:
                     raise CatalogueError(f"parent run {parent_run_id} measured sensor {parent['sensor_id']}, "
                                          f"not {sensor_id}; a resumed run continues the same sensor")
             run_id = conn.execute(
                 """INSERT INTO runs (campaign_id, parent_run_id, sensor_id, plan_name, plan_args_json, created_utc,
-                                     n_points_planned, provenance_json) VALUES (?, ?, ?, ?, ?, ?, ?, ?)""",
+                                     n_points_planned, provenance_json, family, descriptor_json)
+                   VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)""",
                 (campaign_id, parent_run_id, sensor_id, plan_name, args_json, utc_now(), n_points_planned,
-                 provenance_json)).lastrowid
+                 provenance_json, descriptor.family, descriptor_json)).lastrowid
             message = f"created (resumes run {parent_run_id})" if parent_run_id is not None else "created"
-            self._event(conn, run_id, "status", message, {"from": None, "to": "created", "parent_run_id": parent_run_id})
+            self._event(conn, run_id, "status", message,
+                        {"from": None, "to": "created", "parent_run_id": parent_run_id})
             return run_id
 
     def set_run_status(self, run_id: int, status: str, reason: str | None = None) -> None:
@@ -833,11 +883,11 @@ class Catalogue:
         exposure_ms : float or None
             Sensor exposure [ms], > 0; None when the sensor has none or did not report it.
         readings : list of dict
-            One per frame, with keys from :data:`READING_FIELDS`: ``repeat`` (default: index in the list),
-            ``x_px, y_px`` [px] (required when status is "ok"; NaN means missing), ``peak_dn`` [DN],
-            ``n_pixels``, ``flags`` (default 0), ``status`` ("ok", the default, or the centroid error name),
-            ``frame_path`` (a file under :meth:`frames_dir`: absolute, or relative to :attr:`frames_root`),
-            ``t_s`` [s] (bench-clock time of the frame, required).
+            One per frame: the keys every family shares, :data:`READING_FIELDS` — ``repeat`` (default: index
+            in the list), ``status`` ("ok", the default, or the name of what went wrong), ``frame_path`` (a
+            file under :meth:`frames_dir`: absolute, or relative to :attr:`frames_root`), ``t_s`` [s]
+            (bench-clock time of the reading, required) — and the fields of the run's family descriptor (an
+            "ok" reading needs every required one; NaN means missing).
         started_utc : str, datetime or float (seconds since the epoch), optional
             When the point's measurement began; ``completed_utc`` is the time of recording.
 
@@ -858,14 +908,16 @@ class Catalogue:
         # None: a sensor without an exposure setting (photodiodes) or one that did not report it
         pose["exposure_ms"] = None if exposure_ms is None else _finite(exposure_ms, f"point {key!r}: exposure_ms")
         if isinstance(started_utc, (int, float)) and not isinstance(started_utc, bool):  # epoch seconds
-            started_utc = dt.datetime.fromtimestamp(started_utc, dt.timezone.utc)
+            started_utc = dt.datetime.fromtimestamp(started_utc, dt.UTC)
         if isinstance(started_utc, dt.datetime):
             started_utc = _iso(started_utc)
-        rows = [self._reading_row(i, reading, key) for i, reading in enumerate(readings)]
-        if not rows:
+        if not readings:
             raise CatalogueError(f"point {key!r} has no readings; a point is a pose with its frames")
         with self._write(f"record point {key!r} of run {run_id}") as conn:
-            status = self._run_row(conn, run_id)["status"]
+            run = self._run_row(conn, run_id)
+            descriptor = ReadingDescriptor.from_json(json.loads(run["descriptor_json"]))
+            rows = [self._reading_row(i, reading, key, descriptor) for i, reading in enumerate(readings)]
+            status = run["status"]
             if status in TERMINAL_RUN_STATUSES:
                 raise CatalogueError(f"run {run_id} is {status}; points are recorded only in a run that has not ended")
             if conn.execute("SELECT 1 FROM points WHERE run_id = ? AND key = ?", (run_id, key)).fetchone():
@@ -878,45 +930,43 @@ class Catalogue:
             for i, row in enumerate(rows):
                 try:
                     conn.execute(
-                        """INSERT INTO readings (point_id, repeat, x_px, y_px, peak_dn, n_pixels, flags, status,
-                                                 frame_path, t_s) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)""",
+                        """INSERT INTO readings (point_id, repeat, status, frame_path, t_s, values_json)
+                           VALUES (?, ?, ?, ?, ?, ?)""",
                         (point_id, *row))
                 except sqlite3.IntegrityError as exc:
                     raise CatalogueError(f"point {key!r} of run {run_id}: reading {i} (repeat {row[0]}) refused: "
                                          f"{exc}; the point was not recorded") from exc
             return point_id
 
-    def _reading_row(self, index: int, reading: dict, key: str) -> tuple:
+    def _reading_row(self, index: int, reading: dict, key: str, descriptor: ReadingDescriptor) -> tuple:
+        where = f"point {key!r}: reading {index}"
         if not isinstance(reading, dict):
-            raise CatalogueError(f"point {key!r}: reading {index} must be a dict, not {type(reading).__name__}")
-        unknown = sorted(set(reading) - set(READING_FIELDS))
-        if unknown:
-            raise CatalogueError(f"point {key!r}: reading {index} has unknown fields {unknown} (known: "
-                                 f"{', '.join(READING_FIELDS)}; frames go to files under frames_dir())")
-        values = {**READING_FIELDS, "repeat": index, **reading}
-        for name in _READING_REAL:  # NaN and ±inf mean "no value": SQL NULL, which the constraints then judge
-            value = values[name]
-            if value is not None:
-                try:
-                    value = float(value)
-                except (TypeError, ValueError):
-                    raise CatalogueError(f"point {key!r}: reading {index}: {name} must be a number, "
-                                         f"not {value!r}") from None
-                values[name] = value if math.isfinite(value) else None
-        for name in _READING_INT:
-            value = values[name]
-            if value is not None:
-                if isinstance(value, float) and not value.is_integer() or isinstance(value, str):
-                    raise CatalogueError(f"point {key!r}: reading {index}: {name} must be an integer, not {value!r}")
-                try:
-                    values[name] = int(value)
-                except (TypeError, ValueError):
-                    raise CatalogueError(f"point {key!r}: reading {index}: {name} must be an integer, "
-                                         f"not {value!r}") from None
-        if values["frame_path"] is not None:
-            values["frame_path"] = self._relative_frame_path(values["frame_path"], f"point {key!r}: reading {index}")
-        return tuple(values[name] for name in ("repeat", "x_px", "y_px", "peak_dn", "n_pixels", "flags", "status",
-                                               "frame_path", "t_s"))
+            raise CatalogueError(f"{where} must be a dict, not {type(reading).__name__}")
+        shared = {**READING_FIELDS, "repeat": index, **{k: v for k, v in reading.items() if k in READING_FIELDS}}
+        family = {k: v for k, v in reading.items() if k not in READING_FIELDS}
+        repeat, status, t_s = shared["repeat"], shared["status"], shared["t_s"]
+        if isinstance(repeat, bool) or not isinstance(repeat, int) and not (isinstance(repeat, float)
+                                                                             and repeat.is_integer()):
+            raise CatalogueError(f"{where}: repeat must be an integer, not {repeat!r}")
+        if int(repeat) < 0:
+            raise CatalogueError(f"{where}: repeat must be >= 0, not {repeat!r}")
+        if not isinstance(status, str) or not status:
+            raise CatalogueError(f"{where}: status must be a non-empty string, not {status!r}")
+        try:
+            t_s = float(t_s)
+        except (TypeError, ValueError):
+            raise CatalogueError(f"{where}: t_s (the reading's bench-clock time) must be a number, "
+                                 f"not {t_s!r}") from None
+        if not math.isfinite(t_s):
+            raise CatalogueError(f"{where}: t_s must be finite, not {t_s}")
+        try:
+            values = descriptor.validate(family, ok=status == "ok", where=where)
+        except DescriptorError as exc:
+            raise CatalogueError(f"{exc} (frames go to files under frames_dir())") from None
+        frame_path = shared["frame_path"]
+        if frame_path is not None:
+            frame_path = self._relative_frame_path(frame_path, where)
+        return int(repeat), status, frame_path, t_s, json.dumps(values, allow_nan=False)
 
     def completed_keys(self, run_ids: int | Iterable[int]) -> set[str]:
         """Keys of the points recorded in these runs (give a :meth:`lineage` to resume a run)."""
@@ -931,20 +981,25 @@ class Catalogue:
             f"""SELECT p.*, (SELECT count(*) FROM readings r WHERE r.point_id = p.id) AS n_readings
                 FROM points p WHERE p.run_id IN ({_placeholders(len(ids))}) ORDER BY p.id""", ids)]
 
-    def readings(self, run_ids: int | Iterable[int]) -> list[dict]:
-        """The readings of these runs, ordered by point (recording order) then repeat.
-
-        Each dict has the reading's columns (``id, point_id, repeat, x_px, y_px, peak_dn, n_pixels, flags,
-        status, frame_path, t_s``) and its point's ``run_id, key, stage, azimuth_deg, zenith_stage_deg,
-        zenith_deg, azimuth_body_deg, exposure_ms``. ``frame_path`` is relative to :attr:`frames_root`
-        (:meth:`frame_file` makes it absolute).
+    def readings(self, run_ids: int | Iterable[int]) -> list[ReadingRecord]:
+        """The readings of these runs, ordered by point (recording order) then repeat, as typed records: the
+        fields every family shares, the point's pose and direction, and the family's ``values`` (by the run's
+        descriptor, :meth:`descriptor`). ``frame_path`` is relative to :attr:`frames_root`.
         """
         ids = _run_ids(run_ids)
-        return [_row(r) for r in self._all(
-            f"""SELECT r.*, p.run_id, p.key, p.stage, p.azimuth_deg, p.zenith_stage_deg, p.zenith_deg,
-                       p.azimuth_body_deg, p.exposure_ms
+        rows = self._all(
+            f"""SELECT r.id, r.point_id, p.run_id, p.key, p.stage, p.azimuth_deg, p.zenith_stage_deg, p.zenith_deg,
+                       p.azimuth_body_deg, p.exposure_ms, r.repeat, r.status, r.t_s, r.frame_path, r.values_json
                 FROM readings r JOIN points p ON p.id = r.point_id
-                WHERE p.run_id IN ({_placeholders(len(ids))}) ORDER BY p.id, r.repeat""", ids)]
+                WHERE p.run_id IN ({_placeholders(len(ids))}) ORDER BY p.id, r.repeat""", ids)
+        return [ReadingRecord(*tuple(row)[:-1], values=json.loads(row["values_json"])) for row in rows]
+
+    def descriptor(self, run_id: int) -> ReadingDescriptor:
+        """The reading descriptor of a run (what its family's readings hold)."""
+        row = self._one("SELECT descriptor_json FROM runs WHERE id = ?", (run_id,))
+        if row is None:
+            raise CatalogueError(f"no run {run_id}")
+        return ReadingDescriptor.from_json(json.loads(row["descriptor_json"]))
 
     # --- frames -----------------------------------------------------------------------------------------
     @property
@@ -963,10 +1018,6 @@ class Catalogue:
         if not self.readonly:
             folder.mkdir(parents=True, exist_ok=True)
         return folder
-
-    def frame_file(self, frame_path: str) -> Path:
-        """The absolute path of a reading's ``frame_path`` (stored relative to :attr:`frames_root`)."""
-        return self.frames_root / frame_path
 
     def _relative_frame_path(self, frame_path, what: str) -> str:
         path = Path(frame_path)
@@ -1011,15 +1062,6 @@ class Catalogue:
                 """INSERT INTO calibrations (run_id, method, document_json, metrics_json, chosen, created_utc)
                    VALUES (?, ?, ?, ?, ?, ?)""",
                 (run_id, method, document_json, metrics_json, int(bool(chosen)), utc_now())).lastrowid
-
-    def choose_calibration(self, calibration_id: int) -> None:
-        """Make a stored calibration its run's chosen one (and no other of that run)."""
-        with self._write(f"choose calibration {calibration_id}") as conn:
-            row = conn.execute("SELECT run_id FROM calibrations WHERE id = ?", (calibration_id,)).fetchone()
-            if row is None:
-                raise CatalogueError(f"no calibration {calibration_id}")
-            conn.execute("UPDATE calibrations SET chosen = 0 WHERE run_id = ? AND chosen = 1", (row[0],))
-            conn.execute("UPDATE calibrations SET chosen = 1 WHERE id = ?", (calibration_id,))
 
     def calibrations(self, run_id: int) -> list[dict]:
         """A run's calibrations, oldest first: ``id, run_id, method, document, metrics, chosen, created_utc``."""

@@ -1,46 +1,65 @@
-"""The `sunbench` command line.
+"""`sunbench fit | apply | header | demo | sim`: calibrations from files, and the simulated bench's devices.
 
 Every command ends bad input with one line on stderr naming the file, row and column, and exit code 2,
-never a traceback.
+never a traceback (`cli_common.user_errors`). The app itself is built by the `cli/` package.
 """
 
 from __future__ import annotations
 
-import functools
-import sys
 from importlib import metadata
 from pathlib import Path
 from typing import Optional
 
+import numpy as np
 import typer
-from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
 from calibration.design import DEFAULT_SENSOR, SensorDesign
 from calibration.errors import CalibrationError
-from calibration.evaluation import CalibrationOutcome, MethodReport, StageFrames, calibrate
-from calibration.stage_geometry import GeometryPrior
+from calibration.evaluation import CalibrationOutcome, StageFrames, calibrate
 from calibration.models import METHODS, Calibration
 from calibration.models.physical import PhysicalCalibration
 from calibration.pinhole import PinholeBuild
+from calibration.qd.evaluation import METHODS as QD_METHODS
+from calibration.stage_geometry import GeometryPrior
 from calibration.synthetic import EXAMPLE_BUILD, synthetic_bench_data
 
-from drivers.errors import DeviceError
-
 from .benchfile import BenchFile, BenchFileError, load_bench_file
-from .campaign import CampaignFileError
-from .catalogue import CatalogueError
-from .runner import PreflightRefused, ResumeRefused
-from .datafile import (DataFileError, calibration_document, header_from_document, read_bench_frames,
-                       read_calibration, read_spots_csv, write_applied_csv, write_bench_csv, write_calibration)
+from .cli_common import err, fmt, metrics_table, out, qd_metrics_table, user_errors
+from .datafile import (
+    DataFileError,
+    calibration_document,
+    header_from_document,
+    load_calibration_json,
+    read_bench_frames,
+    read_calibration,
+    read_spots_csv,
+    write_applied_csv,
+    write_bench_csv,
+    write_calibration,
+)
+from .qd_datafile import (
+    QdFrames,
+    angular_errors_deg,
+    is_qd_document,
+    qd_calibration_file,
+    qd_header_from_document,
+    read_qd_calibration,
+    read_qd_frames,
+    read_qd_readings,
+    write_qd_applied_csv,
+)
 
-app = typer.Typer(help="sunbench: sun-sensor calibration bench.", no_args_is_help=True, add_completion=False)
+#: `fit`, `apply`, `header`, `demo`, `sim`; `register` adds them to the `sunbench` app (cli/main.py).
+commands = typer.Typer()
 fit_app = typer.Typer(help="Fit a calibration to bench data.", no_args_is_help=True)
-app.add_typer(fit_app, name="fit")
 
-out = Console(width=None if sys.stdout.isatty() else 150)  # a pipe or a test gets whole tables
-err = Console(stderr=True)
+
+def register(app: typer.Typer) -> None:
+    """Add this module's commands to `app`."""
+    app.registered_commands.extend(commands.registered_commands)
+    app.add_typer(fit_app, name="fit")
 
 
 def _version() -> str:
@@ -48,61 +67,6 @@ def _version() -> str:
         return metadata.version("sunbench")
     except metadata.PackageNotFoundError:
         return "unknown"
-
-
-def _user_errors(command):
-    """Turn the typed errors of bad input into one stderr line and exit code 2."""
-
-    @functools.wraps(command)
-    def wrapper(*args, **kwargs):
-        try:
-            return command(*args, **kwargs)
-        except (DataFileError, CalibrationError, BenchFileError, CampaignFileError, CatalogueError,
-                PreflightRefused, ResumeRefused) as exc:
-            err.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
-            raise typer.Exit(2) from None
-        except DeviceError as exc:  # a device that does not answer as it should: not the user's input
-            err.print(f"[bold red]device error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
-            raise typer.Exit(1) from None
-        except OSError as exc:
-            err.print(f"[bold red]error:[/] {escape(str(exc.filename or ''))}: {escape(str(exc.strerror))}",
-                      highlight=False, soft_wrap=True)
-            raise typer.Exit(2) from None
-
-    return wrapper
-
-
-def _f(value: float, digits: int = 3) -> str:
-    return "—" if value != value else f"{value:.{digits}f}"  # NaN → dash
-
-
-def metrics_table(reports: list[MethodReport], chosen: str | None) -> Table:
-    """Seed 003 Table 4.1 columns for every method: held out (the worse of two schemes), and more."""
-    notes: list[str] = []
-    table = Table(title="Accuracy held out [°] — the worse of leave-one-azimuth-out and leave-one-zenith-ring-out; "
-                        "* = chosen", title_justify="left")
-    table.add_column("method", no_wrap=True)
-    for name in ("RMS zenith", "RMS azimuth", "RMS vector", "95 % (2×RMS)", "max vector", "azimuth out",
-                 "ring out", "RMS at nodes", "χ²/dof"):
-        table.add_column(name, justify="right", max_width=9)
-    for r in reports:
-        label = r.method + (" *" if r.method == chosen else "")
-        if r.calibration is None:
-            table.add_row(label, *["[dim]—[/]"] * 9)
-            notes.append(f"not fitted: {r.error}")
-            continue
-        h = r.heldout
-        row = [_f(h.rms_zenith_deg, 4), _f(h.rms_azimuth_deg, 4), _f(h.rms_vector_deg, 4), _f(h.bound95_deg, 4),
-               _f(h.max_vector_deg, 4)] if h else ["—"] * 5
-        row += [_f(r.heldout_azimuth.rms_vector_deg, 4) if r.heldout_azimuth else "—",
-                _f(r.heldout_ring.rms_vector_deg, 4) if r.heldout_ring else "—"]
-        table.add_row(label, *row, _f(r.fitted.rms_vector_deg, 4),
-                      _f(r.chi2_dof, 1) if r.chi2_dof is not None else "—")
-        if r.error:
-            notes.append(f"{r.method}: {r.error}")
-    table.caption = "\n".join(notes) or None
-    table.caption_justify = "left"
-    return table
 
 
 def physical_table(cal: PhysicalCalibration, truth: PinholeBuild | None = None) -> Table:
@@ -138,7 +102,7 @@ def print_outcome(outcome: CalibrationOutcome, chosen: str) -> None:
     scatter = quality["repeat_scatter_px"]
     chi2 = next(r.chi2_dof for r in outcome.reports if r.method == chosen)
     out.print(f"{quality['frames']} frames at {quality['directions']} directions; repeat scatter "
-              + (f"{scatter:.4f} px per frame; {chosen}: χ²/dof = {_f(chi2 if chi2 is not None else float('nan'), 2)}"
+              + (f"{scatter:.4f} px per frame; {chosen}: χ²/dof = {fmt(chi2 if chi2 is not None else float('nan'), 2)}"
                  if scatter is not None else "unknown (no repeats)"), highlight=False)
     if outcome.rejected:
         out.print(f"[bold]{len(outcome.rejected)} rejected frame(s)[/] (left out of every fit):", highlight=False)
@@ -166,7 +130,7 @@ def _option_or(metadata: dict, name: str, option):
 
 
 @fit_app.command("cmos")
-@_user_errors
+@user_errors
 def fit_cmos(
     data_csv: Path = typer.Argument(..., help="Bench data CSV (see the README)."),
     method: Optional[str] = typer.Option(None, "--method", "-m",
@@ -179,7 +143,8 @@ def fit_cmos(
     lever_arm_sd_mm: Optional[float] = typer.Option(None, help="1σ of --lever-arm-mm [mm] (default 0.5 %)."),
     source_distance_mm: Optional[float] = typer.Option(None, help="Stage angles: sensor-to-simulator distance L "
                                                                   "[mm], as measured (fitted with it)."),
-    source_distance_sd_mm: Optional[float] = typer.Option(None, help="1σ of --source-distance-mm [mm] (default 0.5 %)."),
+    source_distance_sd_mm: Optional[float] = typer.Option(None, help="1σ of --source-distance-mm [mm] "
+                                                                     "(default 0.5 %)."),
     mount_tilt_x_deg: Optional[float] = typer.Option(None, help="Stage angles: the sensor's tilt on its fixture "
                                                                 "toward azimuth 0° [°], if measured (default 0)."),
     mount_tilt_y_deg: Optional[float] = typer.Option(None, help="The same toward azimuth 90° [°]."),
@@ -189,7 +154,8 @@ def fit_cmos(
     height_px: Optional[int] = typer.Option(None, help="Detector height [px] (default 480)."),
     pinhole_height_mm: Optional[float] = typer.Option(None, help="Nominal pinhole height L [mm] (the fit's start)."),
     glass_index: Optional[float] = typer.Option(None, help="physical: refractive index of the glass between pinhole "
-                                                           "and pixels (BK7/D263 1.52, sapphire 1.77, fused silica 1.46)."),
+                                                           "and pixels (BK7/D263 1.52, sapphire 1.77, "
+                                                           "fused silica 1.46)."),
     fit_index: bool = typer.Option(False, "--fit-index", help="physical: fit the glass index too (it is "
                                                               "strongly correlated with the thickness)."),
 ) -> None:
@@ -243,19 +209,139 @@ def fit_cmos(
         out.print(f"C header written to {escape(str(header))}")
 
 
+#: Column heads of the dark-current parameters (calibration.qd.dark.DARK_PARAMETERS).
+_DARK_HEADS = {"id0_a": "offset I_d0 [A]", "kd_a_per_c": "slope k_d [A/°C]", "a_a": "offset a [A]",
+               "c_a": "scale c [A]", "b_per_c": "rate b [1/°C]"}
+
+
+def qd_dark_table(dark) -> Table | None:
+    """The dark-current fit per quadrant (seed 002 §2.1): each parameter ± 1σ and the residual."""
+    from calibration.qd.dark import DARK_PARAMETERS
+
+    names = DARK_PARAMETERS[dark.kind]
+    if not names:
+        return None
+    lo, hi = dark.temperature_range_c
+    model = {"linear": "I_d = I_d0 + k_d·t", "constant": "I_d = I_d0",
+             "exponential": f"I_d = a + c·exp(b·(t − {dark.model.t_ref_c:g} °C))"}[dark.kind]
+    table = Table(title=f"Dark current per quadrant (seed 002 §2.1): {dark.kind}, {model}; {dark.n_points} dark "
+                        f"readings over {lo:.2f}…{hi:.2f} °C", title_justify="left")
+    table.add_column("quadrant")
+    for name in names:
+        table.add_column(_DARK_HEADS.get(name, name), justify="right")
+    table.add_column("residual SD [A]", justify="right")
+    sd = dark.model.sd
+    for k in range(4):
+        cells = []
+        for j in range(len(names)):
+            value, sigma = dark.model.parameters[k, j], sd[k, j]
+            cells.append(f"{value:.4e} ± {sigma:.2e}" if np.isfinite(sigma) else f"{value:.4e} ± —")
+        resid = dark.model.residual_sd_a[k]
+        table.add_row(f"Q{k + 1}", *cells, f"{resid:.2e}" if np.isfinite(resid) else "—")
+    if dark.note:
+        table.caption = escape(dark.note)
+        table.caption_justify = "left"
+    return table
+
+
+def print_qd_outcome(outcome, frames: QdFrames, method: str) -> None:
+    """The dark fit, the geometric model's correlations, the rejected rows (by CSV row) and the warnings."""
+    from calibration.qd.geometric import CORRELATION_LIMIT
+
+    data = frames.data
+    dark_table = qd_dark_table(outcome.dark)
+    if dark_table is not None:
+        out.print(dark_table)
+    else:
+        out.print(f"dark current: {escape(outcome.dark.note)}", highlight=False)
+    try:
+        geometric = outcome.report("geometric")
+    except KeyError:
+        geometric = None
+    if geometric is not None and geometric.model is not None:
+        statements = geometric.details.get("statements") or []
+        out.print("[bold]Geometric model (eq. 2.2), strong correlations:[/]" if statements else
+                  f"Geometric model (eq. 2.2): no two parameters correlated beyond ±{CORRELATION_LIMIT:g}",
+                  highlight=False)
+        for statement in statements:
+            out.print("  " + escape(statement), highlight=False, soft_wrap=True)
+    scatter = outcome.repeat_scatter_share
+    chi2 = outcome.report(method).chi2_dof
+    out.print(f"{len(data)} readings ({int(data.dark.sum())} dark, {int(data.check.sum())} check) at "
+              f"{len(outcome.directions)} directions; repeat scatter of a quadrant share "
+              + (f"{scatter:.2e}" if scatter is not None else "unknown (no repeats)")
+              + f"; {method}: χ²/dof = " + (fmt(chi2, 2) if chi2 is not None else "—"), highlight=False)
+    if outcome.rejected:
+        out.print(f"[bold]{len(outcome.rejected)} rejected row(s)[/] (left out of every fit):", highlight=False)
+        for r in outcome.rejected:
+            where = "" if np.isnan(r.alpha_deg) else f" (α {r.alpha_deg:.3f}°, β {r.beta_deg:.3f}°)"
+            out.print(f"  {frames.where(r.row_id)}{where}: {escape(r.reason)}", highlight=False, soft_wrap=True)
+    for w in outcome.warnings:
+        out.print(f"[bold yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
+
+
+@fit_app.command("qd")
+@user_errors
+def fit_qd(
+    data_csv: Path = typer.Argument(..., help="QD bench data CSV (see the README)."),
+    method: Optional[str] = typer.Option(None, "--method", "-m", help=f"One of {', '.join(QD_METHODS)}; default: "
+                                                                      "the smallest held-out max error."),
+    output: Optional[Path] = typer.Option(None, "--output", "-o", help="Write the calibration JSON here."),
+    header: Optional[Path] = typer.Option(None, "--header", help="Also write a C header for the sensor's MCU."),
+    sensor: Optional[str] = typer.Option(None, "--sensor", help="Fit this sensor_id of a multi-sensor file."),
+) -> None:
+    """Fit a quadrant-photodiode (QD) sensor's calibration (seed 002): the dark current, then every method held
+    out between the grid's nodes."""
+    from calibration.qd.evaluation import calibrate_qd
+
+    if method is not None and method not in QD_METHODS:
+        raise CalibrationError(f"--method must be one of {', '.join(QD_METHODS)}, got {method!r}")
+    frames = read_qd_frames(data_csv, sensor_id=sensor)
+    data = frames.data
+    try:
+        with err.status("fitting the dark current and cross-validating every method…"):
+            outcome = calibrate_qd(data, design=frames.design)
+    except CalibrationError as exc:
+        raise DataFileError(data_csv, str(exc), column=getattr(exc, "column", None)) from None
+    chosen = outcome.chosen.method if method is None else method
+    report = outcome.report(chosen)
+    out.print(qd_metrics_table(outcome.reports, chosen))
+    if report.document is None:
+        raise DataFileError(data_csv, f"method {chosen} could not be fitted: {report.error}")
+    print_qd_outcome(outcome, frames, chosen)
+    out.print(f"{len(data)} readings from {escape(str(data_csv))}"
+              + (f" (sensor {escape(data.sensor_id)})" if data.sensor_id else "") + f"; method [bold]{chosen}[/]"
+              + ("" if method is None else f" (asked for; the best held out is {outcome.chosen.method})"),
+              highlight=False)
+    document = qd_calibration_file(report.document, source=str(data_csv), software=f"sunbench {_version()}",
+                                   rejected=outcome.rejected, warnings=outcome.warnings)
+    text = qd_header_from_document(document) if header else None  # a header that cannot be written: no file at all
+    if output:
+        write_calibration(output, document)
+        out.print(f"calibration written to {escape(str(output))}")
+    if header:
+        _write_text(header, text)
+        out.print(f"C header written to {escape(str(header))}")
+
+
 def _write_text(path: Path, text: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
 
 
-@app.command("apply")
-@_user_errors
+@commands.command("apply")
+@user_errors
 def apply_calibration(
     calibration_json: Path = typer.Argument(..., help="Calibration JSON written by `sunbench fit`."),
-    spots_csv: Path = typer.Argument(..., help="CSV with x_px, y_px columns."),
-    output: Path = typer.Option(..., "--output", "-o", help="Output CSV: the input columns + zenith_deg, azimuth_deg."),
+    spots_csv: Path = typer.Argument(..., help="CSV with x_px, y_px columns (a QD calibration: i1_a … i4_a, "
+                                               "temperature_c)."),
+    output: Path = typer.Option(..., "--output", "-o", help="Output CSV: the input columns + zenith_deg, azimuth_deg "
+                                                            "(QD: alpha_deg, beta_deg first, error_deg last)."),
 ) -> None:
-    """Turn spot centres into sun directions with a fitted calibration."""
+    """Turn spot centres (or a QD sensor's currents) into sun directions with a fitted calibration."""
+    if is_qd_document(load_calibration_json(calibration_json)):
+        _apply_qd(calibration_json, spots_csv, output)
+        return
     calibration, _ = read_calibration(calibration_json)
     table, x, y = read_spots_csv(spots_csv)
     zenith, azimuth = calibration.apply(x, y)
@@ -263,20 +349,52 @@ def apply_calibration(
     out.print(f"{len(x)} directions written to {escape(str(output))} (method {calibration.method})")
 
 
-@app.command("header")
-@_user_errors
+def _apply_qd(calibration_json: Path, readings_csv: Path, output: Path) -> None:
+    """`apply` with a QD calibration: α, β, zenith, azimuth per row, and the angular error where the file has the
+    true direction (seed 002 §2.1, eqs. 2.1–2.3, through the document alone)."""
+    from calibration.qd.document import apply_document
+
+    document = read_qd_calibration(calibration_json)
+    readings = read_qd_readings(readings_csv)
+    alpha, beta, zenith, azimuth = apply_document(document, readings.currents_a, readings.temperature_c)
+    alpha, beta, zenith, azimuth = (np.where(readings.dark, np.nan, v) for v in (alpha, beta, zenith, azimuth))
+    error = angular_errors_deg(readings, alpha, beta) if readings.has_truth else None
+    write_qd_applied_csv(output, readings, alpha, beta, zenith, azimuth, error)
+    found = np.isfinite(alpha) & np.isfinite(beta)
+    none = int((~found & ~readings.dark).sum())
+    out.print(f"{int(found.sum())} directions written to {escape(str(output))} (QD method {document['method']})"
+              + (f"; {int(readings.dark.sum())} dark row(s) left without one" if readings.dark.any() else "")
+              + (f"; no direction for {none} lit row(s) (no light, or the spot off the QD's centre)" if none else ""),
+              highlight=False)
+    if error is not None and np.isfinite(error).any():
+        e = error[np.isfinite(error)]
+        out.print(f"angular error against the file's directions: max {e.max():.4f}°, RMS {np.sqrt(np.mean(e**2)):.4f}° "
+                  f"over {e.size} row(s)", highlight=False)
+    sensor = document.get("sensor_id")
+    if sensor and readings.sensor_ids and readings.sensor_ids != [sensor]:
+        out.print(f"[yellow]note:[/] the calibration is of sensor {escape(sensor)}, the readings of "
+                  f"{escape(', '.join(readings.sensor_ids))}", highlight=False)
+
+
+@commands.command("header")
+@user_errors
 def export_header(
     calibration_json: Path = typer.Argument(..., help="Calibration JSON written by `sunbench fit`."),
     output: Path = typer.Option(..., "--output", "-o", help="C header to write."),
 ) -> None:
-    """Export a calibration as a C header with `sunbench_sun_direction()` for the sensor's MCU."""
+    """Export a calibration as a C header with `sunbench_sun_direction()` (QD: `sunbench_qd_sun_direction()`)
+    for the sensor's MCU."""
+    if is_qd_document(load_calibration_json(calibration_json)):
+        _write_text(output, qd_header_from_document(read_qd_calibration(calibration_json)))
+        out.print(f"C header written to {escape(str(output))}")
+        return
     calibration, document = read_calibration(calibration_json)
     _write_text(output, header_from_document(document, calibration))
     out.print(f"C header written to {escape(str(output))}")
 
 
-@app.command("demo")
-@_user_errors
+@commands.command("demo")
+@user_errors
 def demo(
     seed: int = typer.Option(1, help="Seed of the simulated centroid noise."),
     noise_px: float = typer.Option(0.02, help="Centroid noise, one sigma per axis [px]."),
@@ -335,11 +453,12 @@ def client_hints(kind: str, url: str, pty: str | None) -> list[str]:
     return lines
 
 
-@app.command("sim")
-@_user_errors
+@commands.command("sim")
+@user_errors
 def serve_simulators(
     config: Optional[Path] = typer.Option(None, "--config", "-c", help="Bench YAML file (its `simulation:` "
-                                                                     "section); default: the simulated bench of examples/bench-sim.yaml."),
+                                                                     "section); default: the simulated bench of "
+                                                                     "examples/bench-sim.yaml."),
     table: Optional[str] = typer.Option(None, "--table", metavar="apt|smc100|lx200",
                                         help="The simulated table (overrides the bench file's)."),
     source: Optional[str] = typer.Option(None, "--source", metavar="xenon|led",
@@ -385,7 +504,7 @@ def serve_simulators(
             from drivers.sim.pty_bridge import PtyBridge
             bridges = {role: PtyBridge(device).start() for role, device in bench.devices.items()}
         out.print(f"simulated bench: {sim.table} table, {sim.source} source, {sim.axis_order}, sensor "
-                  f"{sim.sensor.serial}, time scale {bench.world.clock.time_scale:g}", highlight=False)
+                  f"{sim.sensor.serial}, time scale {bench.time_scale:g}", highlight=False)
         for role, url in server.urls.items():
             print(f"{role:14s} {url}", flush=True)  # `role url`: what scripts parse
             path = bridges[role].path if role in bridges else None
@@ -403,14 +522,3 @@ def serve_simulators(
         for bridge in bridges.values():
             bridge.close()
         server.stop()
-
-
-from . import cli_runs  # noqa: E402,F401 - registers run, runs, show, resume, export, fleet
-
-
-def main() -> None:  # pragma: no cover - entry point
-    app()
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import os
 import signal
 from pathlib import Path
 from typing import Optional
@@ -16,27 +15,31 @@ from rich.table import Table
 
 from .benchfile import BenchFile, load_bench_file
 from .campaign import load_campaign_file
-from .cli import _f, _user_errors, app, err, metrics_table, out
-from .datafile import write_bench_csv
+from .cli_common import (
+    DEFAULT_CATALOGUE,
+    MAX_ID,
+    BenchOption,
+    CatalogueOption,
+    TimeScaleOption,
+    err,
+    fmt,
+    metrics_table,
+    open_catalogue,
+    out,
+    qd_metrics_table,
+    user_errors,
+)
 
-# an empty XDG_DATA_HOME counts as unset, as the XDG spec says
-DEFAULT_CATALOGUE = (Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share")
-                     / "sunbench" / "catalogue.sqlite")
+#: `run`, `runs`, `show`, `resume`, `export`, `fleet`; `register` adds them to the `sunbench` app (cli/main.py).
+commands = typer.Typer()
 
-CatalogueOption = typer.Option(None, "--catalogue", envvar="SUNBENCH_CATALOGUE",
-                               help=f"SQLite catalogue (default: {DEFAULT_CATALOGUE}).")
-BenchOption = typer.Option(None, "--bench", "-b", help="Bench file (default: the simulated bench).")
-TimeScaleOption = typer.Option(None, "--time-scale", min=0.0, max=1000.0,
-                               help="Simulated clock (0 = instant, at most 1000× real time).")
-#: Catalogue ids are SQLite integers: a larger number is refused as bad input, not a traceback.
-MAX_ID = 2**63 - 1
 YesOption = typer.Option(False, "--yes", "-y", help="Confirm every sensor mount without asking (simulated benches "
                                                     "only: unattended simulations).")
 
 
-def _catalogue(path: Optional[Path], *, readonly: bool = False):
-    from .catalogue import Catalogue
-    return Catalogue(path or DEFAULT_CATALOGUE, readonly=readonly)
+def register(app: typer.Typer) -> None:
+    """Add this module's commands to `app`."""
+    app.registered_commands.extend(commands.registered_commands)
 
 
 def _session(bench: Optional[Path], catalogue, time_scale: Optional[float]):
@@ -77,8 +80,8 @@ def _abort_on_signals(engine):
     signal.signal(signal.SIGTERM, handler)
 
 
-@app.command("run")
-@_user_errors
+@commands.command("run")
+@user_errors
 def run_campaign_command(
     campaign_yaml: Path = typer.Argument(..., help="Campaign file (see examples/seed003.yaml)."),
     bench: Optional[Path] = BenchOption,
@@ -95,7 +98,7 @@ def run_campaign_command(
         _refuse_a_busy_real_bench(bench, catalogue)
     else:
         _refuse_yes_on_a_real_bench(bench, yes)
-    with (contextlib.nullcontext() if dry_run else _catalogue(catalogue)) as cat:
+    with (contextlib.nullcontext() if dry_run else open_catalogue(catalogue)) as cat:
         session = _session(bench, cat, time_scale)
         try:
             report = check_campaign(campaign, session)
@@ -201,39 +204,40 @@ def _print_unsafe(run_id: int, unsafe: str | None) -> None:
                   highlight=False)
 
 
-@app.command("runs")
-@_user_errors
+@commands.command("runs")
+@user_errors
 def list_runs(catalogue: Optional[Path] = CatalogueOption) -> None:
     """The runs in the catalogue."""
-    with _catalogue(catalogue, readonly=True) as cat:
+    with open_catalogue(catalogue, readonly=True) as cat:
         table = Table(title="Runs")
         for name in ("run", "campaign", "sensor", "plan", "status", "points", "parent", "started (UTC)"):
             table.add_column(name)
         for r in cat.runs():
             table.add_row(str(r["id"]), str(r["campaign_id"] or ""), r["sensor_id"] or "", r["plan_name"], r["status"],
-                          f"{r.get('n_points_recorded', 0)}/{r.get('n_points_planned') or '?'}", str(r["parent_run_id"] or ""),
-                          (r.get("started_utc") or "")[:19])
+                          f"{r.get('n_points_recorded', 0)}/{r.get('n_points_planned') or '?'}",
+                          str(r["parent_run_id"] or ""), (r.get("started_utc") or "")[:19])
         out.print(table)
 
 
-@app.command("show")
-@_user_errors
+@commands.command("show")
+@user_errors
 def show_run(run_id: int = typer.Argument(..., min=1, max=MAX_ID), catalogue: Optional[Path] = CatalogueOption) -> None:
     """A run: status, provenance, stages, calibrations with their accuracy."""
     from calibration.evaluation import AccuracyMetrics, MethodReport
 
-    with _catalogue(catalogue, readonly=True) as cat:
+    with open_catalogue(catalogue, readonly=True) as cat:
         run = cat.run(run_id)
         reason, unsafe = _reason_and_unsafe(cat, run)
-        out.print(f"[bold]run {run_id}[/] · sensor {run['sensor_id']} · plan {run['plan_name']} · {run['status']}"
-                  + (f" ({escape(reason)})" if reason else ""))
+        out.print(f"[bold]run {run_id}[/] · sensor {run['sensor_id']} ({run['family']}) · plan {run['plan_name']} "
+                  f"· {run['status']}" + (f" ({escape(reason)})" if reason else ""))
         _print_unsafe(run_id, unsafe)
         lineage = cat.lineage(run_id)
         if len(lineage) > 1:
             out.print(f"lineage: runs {' → '.join(map(str, lineage))}")
         out.print(f"points recorded (lineage): {len(cat.completed_keys(lineage))} of {run['n_points_planned'] or '?'}")
         prov = run["provenance"]
-        out.print(f"provenance: {'simulated' if prov.get('simulated') else 'real'} bench, config {prov.get('bench_config_hash', '')[:12]}, "
+        out.print(f"provenance: {'simulated' if prov.get('simulated') else 'real'} bench, "
+                  f"config {prov.get('bench_config_hash', '')[:12]}, "
                   f"sunbench {prov.get('software_version')}, operator {prov.get('operator')}")
         for role, identity in (prov.get("devices") or {}).items():
             out.print(f"  {role}: {escape(str(identity))}")
@@ -241,11 +245,15 @@ def show_run(run_id: int = typer.Argument(..., min=1, max=MAX_ID), catalogue: Op
             value = cat.run_value(run_id, key)
             if value is not None:
                 out.print(f"{key}: {escape(json.dumps(value))}")
+        if run.get("family") == "qd":
+            _show_qd_calibrations(cat, run_id)
+            return
         reports, chosen, document = [], None, {}
         metrics = lambda m, key: AccuracyMetrics(**m[key]) if m.get(key) else None  # noqa: E731
         for c in cat.calibrations(run_id):
             m = c["metrics"]
-            heldout, by_azimuth, by_ring = metrics(m, "heldout"), metrics(m, "heldout_azimuth"), metrics(m, "heldout_ring")
+            heldout, by_azimuth, by_ring = (metrics(m, "heldout"), metrics(m, "heldout_azimuth"),
+                                            metrics(m, "heldout_ring"))
             if m.get("heldout_scheme") == "ring":
                 heldout = by_ring
             elif m.get("heldout_scheme") == "azimuth":
@@ -257,6 +265,28 @@ def show_run(run_id: int = typer.Argument(..., min=1, max=MAX_ID), catalogue: Op
         if reports:
             out.print(metrics_table(reports, chosen))
         print_quality(document)
+
+
+def _show_qd_calibrations(cat, run_id: int) -> None:
+    """A QD run's calibrations: every method's held-out figures, the chosen one's rejected rows and warnings."""
+    from calibration.qd.evaluation import AngularMetrics, QdMethodReport
+
+    angular = lambda m: AngularMetrics(**m) if m else None  # noqa: E731
+    reports, chosen, document = [], None, {}
+    for c in cat.calibrations(run_id):
+        m = c["metrics"]
+        reports.append(QdMethodReport(c["method"], None if m.get("error") else c["document"], c["document"],
+                                      angular(m.get("at_nodes")), angular(m.get("heldout")), m.get("heldout_scheme"),
+                                      {k: angular(v) for k, v in (m.get("heldout_by_scheme") or {}).items()},
+                                      m.get("chi2_dof"), m.get("error")))
+        if c["chosen"]:
+            chosen, document = c["method"], c["document"]
+    if reports:
+        out.print(qd_metrics_table(reports, chosen))
+    for row in document.get("rejected") or []:
+        out.print(f"rejected: row {row.get('row_id')}: {escape(str(row.get('reason')))}", highlight=False)
+    for warning in document.get("warnings") or []:
+        out.print(f"[yellow]warning:[/] {escape(warning)}")
 
 
 def print_quality(document: dict) -> None:
@@ -278,8 +308,8 @@ def print_quality(document: dict) -> None:
         out.print(f"[bold yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
 
 
-@app.command("resume")
-@_user_errors
+@commands.command("resume")
+@user_errors
 def resume_command(
     run_id: int = typer.Argument(..., min=1, max=MAX_ID, help="The interrupted run."),
     bench: Optional[Path] = BenchOption,
@@ -292,7 +322,7 @@ def resume_command(
     from .runner import resume_and_continue
 
     _refuse_yes_on_a_real_bench(bench, yes)
-    with _catalogue(catalogue) as cat:
+    with open_catalogue(catalogue) as cat:
         cat.mark_interrupted_runs()
         cat.mark_interrupted_campaigns()
         session = _session(bench, cat, time_scale)
@@ -307,28 +337,29 @@ def resume_command(
         _end_of_campaign(cat, runs)
 
 
-@app.command("export")
-@_user_errors
+@commands.command("export")
+@user_errors
 def export_run(
     run_id: int = typer.Argument(..., min=1, max=MAX_ID),
-    format: str = typer.Option("csv", "--format", "-f", help="csv (the bench data CSV `sunbench fit` reads) or json."),
+    format: str = typer.Option("csv", "--format", "-f", help="csv (the bench data CSV `sunbench fit cmos` or, "
+                                                             "for a QD run, `fit qd` reads) or json."),
     output: Optional[Path] = typer.Option(None, "--output", "-o", help="File to write (default: stdout)."),
     catalogue: Optional[Path] = CatalogueOption,
 ) -> None:
     """Export a run (with the runs it resumed) as bench data CSV or as JSON."""
-    from .runner import bench_data
+    from .families import family
 
     if format not in ("csv", "json"):
         raise typer.BadParameter("--format must be csv or json")
-    with _catalogue(catalogue, readonly=True) as cat:
+    with open_catalogue(catalogue, readonly=True) as cat:
         run = cat.run(run_id)
         lineage = cat.lineage(run_id)
         if format == "csv":
-            data = bench_data(cat, lineage, sensor_id=run["sensor_id"])
             target = output or Path("/dev/stdout")
-            write_bench_csv(target, data)
+            family(run["family"]).export_csv(cat, lineage, target, run["sensor_id"])  # what `fit <family>` reads
         else:
-            document = {"run": run, "lineage": lineage, "points": cat.points(lineage), "readings": cat.readings(lineage),
+            document = {"run": run, "lineage": lineage, "points": cat.points(lineage),
+                        "readings": [r.to_dict() for r in cat.readings(lineage)],
                         "calibrations": cat.calibrations(run_id), "events": cat.events(run_id)}
             text = json.dumps(document, indent=2, default=str)
             if output:
@@ -339,60 +370,20 @@ def export_run(
             err.print(f"run {run_id} exported to {escape(str(output))}")
 
 
-@app.command("fleet")
-@_user_errors
-def fleet_command(campaign_id: int = typer.Argument(..., min=1, max=MAX_ID), catalogue: Optional[Path] = CatalogueOption) -> None:
+@commands.command("fleet")
+@user_errors
+def fleet_command(campaign_id: int = typer.Argument(..., min=1, max=MAX_ID),
+                  catalogue: Optional[Path] = CatalogueOption) -> None:
     """One row per sensor of a fleet campaign, in the columns of seed 003 Table 6.1 (held out)."""
-    with _catalogue(catalogue, readonly=True) as cat:
+    with open_catalogue(catalogue, readonly=True) as cat:
         campaign = cat.campaign(campaign_id)
         table = Table(title=f"Campaign {campaign_id} ({escape(campaign['name'])}): accuracy held out [°]")
         for name in ("No.", "sensor", "status", "run", "method", "RMS zenith", "RMS azimuth", "RMS vector"):
             table.add_column(name, justify="right" if name.startswith("RMS") else "left")
         for i, row in enumerate(cat.fleet(campaign_id), 1):
             h = ((row.get("metrics") or {}).get("heldout")) or {}
-            table.add_row(str(i), row["sensor_id"], row["status"], str(row.get("run_id") or ""), row.get("method") or "",
-                          _f(h.get("rms_zenith_deg", float("nan"))), _f(h.get("rms_azimuth_deg", float("nan"))),
-                          _f(h.get("rms_vector_deg", float("nan"))))
+            table.add_row(str(i), row["sensor_id"], row["status"], str(row.get("run_id") or ""),
+                          row.get("method") or "",
+                          fmt(h.get("rms_zenith_deg", float("nan"))), fmt(h.get("rms_azimuth_deg", float("nan"))),
+                          fmt(h.get("rms_vector_deg", float("nan"))))
         out.print(table)
-
-
-@app.command("serve")
-@_user_errors
-def serve_command(
-    bench: Optional[Path] = BenchOption,
-    catalogue: Optional[Path] = CatalogueOption,
-    host: str = typer.Option("127.0.0.1", help="Interface to listen on (loopback only by default)."),
-    port: int = typer.Option(8000, help="TCP port."),
-    time_scale: Optional[float] = TimeScaleOption,
-    public_read: bool = typer.Option(False, "--public-read", help="Let read-only views work without the token."),
-    allowed_host: Optional[list[str]] = typer.Option(
-        None, "--allowed-host", help="Another name the server answers to (besides 127.0.0.1, localhost, [::1] and "
-                                     "--host); repeatable. Requests naming any other host get 400 (DNS rebinding)."),
-) -> None:
-    """Serve the bench's web API (OpenAPI at /docs); commands need the token printed at first start."""
-    from web.app import create_app
-    from web.security import default_config_dir, load_or_create_token
-    from web.server import serve
-    from web.settings import WebSettings
-
-    from .service import BenchService
-
-    token, created = load_or_create_token()
-    token_file = escape(str(default_config_dir() / "token"))
-    if created:  # shown once; it stays in the user's config directory
-        out.print(f"API token (created now, kept in {token_file}): [bold]{token}[/]", soft_wrap=True)
-    settings = WebSettings(host=host, port=port, public_read=public_read, token=token,
-                           allowed_hosts=tuple(allowed_host or ()))
-    bench_file = load_bench_file(bench) if bench else BenchFile()
-    with _catalogue(catalogue) as cat:
-        service = BenchService(bench_file, cat, time_scale=time_scale).start()
-        try:
-            where = escape(str(bench)) if bench else "the simulated bench"
-            if bench_file.simulation is not None and time_scale is not None:
-                where += f", simulated time ×{time_scale:g}"
-            out.print(f"sunbench dashboard on http://{host}:{port}/ ({where})", soft_wrap=True)
-            out.print(f"API and its documentation: http://{host}:{port}/docs · the token: {token_file} · Ctrl-C stops",
-                      soft_wrap=True)
-            serve(create_app(service, settings=settings))
-        finally:
-            service.close()

@@ -19,8 +19,8 @@ import numpy as np
 from calibration.data import BenchData
 from calibration.design import BenchGeometry
 from calibration.errors import BenchDataError, CalibrationFormatError
-from calibration.geometry import incidence_from_stage_angle
 from calibration.models import Calibration, calibration_from_dict
+from calibration.stage_geometry import body_direction_deg
 from calibration.uncertainty import uncertainty_document
 
 _METADATA = re.compile(r"^\s*#\s*(?P<key>[A-Za-z_][A-Za-z0-9_]*)\s*[:=]\s*(?P<value>.+)$")
@@ -71,12 +71,18 @@ class CsvTable:
     def has(self, column: str) -> bool:
         return column in self.header
 
-    def numbers(self, column: str, *, integer: bool = False) -> np.ndarray:
-        """The column as finite numbers; the first bad cell raises :class:`DataFileError`."""
+    def numbers(self, column: str, *, integer: bool = False, allow_empty=None) -> np.ndarray:
+        """The column as finite numbers; the first bad cell raises :class:`DataFileError`.
+
+        `allow_empty`, a boolean per row, lets those rows leave the cell empty (NaN then).
+        """
         j = self.header.index(column)
         out = np.empty(len(self.rows), dtype=float)
         for i, row in enumerate(self.rows):
             cell = row[j].strip()
+            if not cell and allow_empty is not None and allow_empty[i]:
+                out[i] = np.nan
+                continue
             try:
                 value = float(cell)
             except ValueError:
@@ -137,11 +143,35 @@ def read_csv_table(path) -> CsvTable:
     return CsvTable(str(path), header, rows, lines, metadata)
 
 
-def _require(table: CsvTable, columns) -> None:
+def require_columns(table: CsvTable, columns) -> None:
+    """Raise :class:`DataFileError` naming every column of `columns` the table lacks (and the header it has)."""
     missing = [c for c in columns if not table.has(c)]
     if missing:
         raise DataFileError(table.path, f"missing column(s) {', '.join(missing)}; the header has "
                                         f"{', '.join(table.header)}")
+
+
+def sensor_rows(table: CsvTable, sensor_id: str | None) -> tuple[np.ndarray, str | None]:
+    """The rows of one sensor, and its id: a file without `sensor_id` is one unnamed sensor; a file holding
+    several needs `sensor_id` to choose one (:class:`DataFileError` otherwise, naming the column)."""
+    keep = np.ones(len(table.rows), dtype=bool)
+    if table.has("sensor_id"):
+        ids = table.texts("sensor_id")
+        distinct = sorted(set(ids))
+        if sensor_id is not None:
+            keep = np.array([i == sensor_id for i in ids])
+            if not keep.any():
+                raise DataFileError(table.path, f"no rows of sensor {sensor_id!r} (it has {', '.join(distinct)})",
+                                    column="sensor_id")
+        elif len(distinct) > 1:
+            raise DataFileError(table.path, f"holds {len(distinct)} sensors ({', '.join(distinct[:5])}"
+                                            f"{', …' if len(distinct) > 5 else ''}); choose one with --sensor",
+                                column="sensor_id")
+        else:
+            sensor_id = distinct[0]
+    elif sensor_id is not None:
+        raise DataFileError(table.path, f"has no sensor_id column, so it cannot select sensor {sensor_id!r}")
+    return keep, sensor_id
 
 
 def read_bench_csv(path, *, bench: BenchGeometry | None = None, sensor_id: str | None = None) -> BenchData:
@@ -162,34 +192,16 @@ def read_bench_csv(path, *, bench: BenchGeometry | None = None, sensor_id: str |
 def _bench_data(table: CsvTable, bench: BenchGeometry | None, sensor_id: str | None) -> BenchData:
     """:func:`read_bench_csv` on a table already read."""
     stage = not all(table.has(c) for c in TRUE_COLUMNS)
-    _require(table, SPOT_COLUMNS + (STAGE_COLUMNS if stage else TRUE_COLUMNS))
+    require_columns(table, SPOT_COLUMNS + (STAGE_COLUMNS if stage else TRUE_COLUMNS))
     if not table.rows:
         raise DataFileError(table.path, "no data rows")
-    keep = np.ones(len(table.rows), dtype=bool)
-    if table.has("sensor_id"):
-        ids = table.texts("sensor_id")
-        distinct = sorted(set(ids))
-        if sensor_id is not None:
-            keep = np.array([i == sensor_id for i in ids])
-            if not keep.any():
-                raise DataFileError(table.path, f"no rows of sensor {sensor_id!r} (it has {', '.join(distinct)})",
-                                    column="sensor_id")
-        elif len(distinct) > 1:
-            raise DataFileError(table.path, f"holds {len(distinct)} sensors ({', '.join(distinct[:5])}"
-                                            f"{', …' if len(distinct) > 5 else ''}); choose one with --sensor",
-                                column="sensor_id")
-        else:
-            sensor_id = distinct[0]
-    elif sensor_id is not None:
-        raise DataFileError(table.path, f"has no sensor_id column, so it cannot select sensor {sensor_id!r}")
+    keep, sensor_id = sensor_rows(table, sensor_id)
     x, y = (_pixels(table, name) for name in SPOT_COLUMNS)
     if stage:
         if bench is None:
             raise DataFileError(table.path, "has stage angles; the bench geometry is needed to convert them")
         omega, stage_az = table.numbers("stage_zenith_deg"), table.numbers("stage_azimuth_deg")
-        theta = incidence_from_stage_angle(omega, bench.lever_arm_mm, bench.source_distance_mm)  # eq. 8
-        zenith = np.abs(theta)
-        azimuth = np.where(theta < 0, stage_az + 180.0, stage_az)  # a negative tilt looks from the far side
+        zenith, azimuth = body_direction_deg(stage_az, omega, bench)  # eq. 8; a negative tilt: the far side
     else:
         zenith, azimuth = table.numbers("zenith_deg"), table.numbers("azimuth_deg")
     optional = {name: table.numbers(name, integer=(name == "repeat")) if table.has(name) else None
@@ -303,7 +315,7 @@ def _pixels(table: CsvTable, name: str) -> np.ndarray:
 def read_spots_csv(path) -> tuple[CsvTable, np.ndarray, np.ndarray]:
     """A CSV with at least `x_px, y_px`; returns the table (to repeat its columns) and the two columns."""
     table = read_csv_table(path)
-    _require(table, SPOT_COLUMNS)
+    require_columns(table, SPOT_COLUMNS)
     return table, _pixels(table, "x_px"), _pixels(table, "y_px")
 
 
@@ -334,7 +346,7 @@ def calibration_document(calibration: Calibration, *, sensor_id: str | None, sou
     document = calibration.to_dict()
     document.update({
         "sensor_id": sensor_id,
-        "created_utc": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
+        "created_utc": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         "software": software,
         "source": source,
     })
@@ -385,17 +397,23 @@ def write_calibration(path, document: dict) -> None:
     path.write_text(json.dumps(document, indent=2) + "\n")
 
 
-def read_calibration(path) -> tuple[Calibration, dict]:
-    """Load a calibration JSON; other formats or versions raise :class:`DataFileError`."""
+def load_calibration_json(path):
+    """The JSON of a calibration file, not yet checked (any family); unreadable files raise :class:`DataFileError`."""
     path = Path(path)
     try:
-        document = json.loads(path.read_text())
+        return json.loads(path.read_text())
     except FileNotFoundError:
         raise DataFileError(path, "no such file") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise DataFileError(path, f"not a JSON calibration file ({exc})") from None
     except RecursionError:
         raise DataFileError(path, "not a calibration file (JSON nested too deeply)") from None
+
+
+def read_calibration(path) -> tuple[Calibration, dict]:
+    """Load a calibration JSON; other formats or versions raise :class:`DataFileError`."""
+    path = Path(path)
+    document = load_calibration_json(path)
     try:
         return calibration_from_dict(document), document
     except CalibrationFormatError as exc:

@@ -16,8 +16,11 @@ A move is expected to take what the table's own speeds say (:meth:`drivers.inter
 :class:`~bench.preflight.TimingModel`); a table still moving ``MOVE_TIMEOUT_FACTOR`` × that plus
 ``MOVE_TIMEOUT_MARGIN_S`` after the start is stalled, and the move faults.
 
-The engine emits an event for what it does and reads (``table``, ``source``, ``sensor``), so a status view can
-follow a run without asking devices the engine owns.
+The engine emits one event type (:class:`bench.events.BenchEvent`) for what it does and reads (``table``,
+``source``, ``sensor``, ``point`` …), so a status view can follow a run without asking devices the engine owns;
+the journal (the catalogue's ``events`` table) is one subscriber, the event stream, the status cache and the
+CLI's progress are others. Plan messages are dispatched through one table (:attr:`RunEngine.handlers`), and
+what a reading is comes from the run's sensor family (:mod:`bench.families`): the engine knows no family.
 
 A point is recorded in one catalogue transaction, so a killed process leaves whole points only; a resumed
 run skips the keys its lineage recorded (research note anchors-orchestration, lessons 2, 3, 9).
@@ -30,21 +33,37 @@ import enum
 import re
 import threading
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from calibration.centroid import CentroidError, SpotFlag, find_spot
-from calibration.geometry import incidence_from_stage_angle
+from calibration.geometry import zenith_azimuth_from_vector
+from calibration.mount import ForkMount, fork_vectors
+from calibration.stage_geometry import arm_ratio, body_direction_deg
 from drivers.errors import DeviceFault, DeviceTimeout
 
-from .messages import (Capture, Checkpoint, CloseShutter, LampOn, Log, Measure, MayStopEarly, Move, OpenShutter, Plan,
-                       Reading, Record, SetExposure, WaitWarm)
+from .events import BenchEvent, Journal
+from .families import Family
+from .families import family as family_named
+from .families.cmos import EDGE_FLAGS  # noqa: F401 - re-exported for older imports
+from .interlocks import DEFAULT_INTERLOCKS, Interlocks
+from .messages import (
+    Capture,
+    Checkpoint,
+    CloseShutter,
+    LampOn,
+    Log,
+    MayStopEarly,
+    Measure,
+    Move,
+    OpenShutter,
+    Plan,
+    Reading,
+    Record,
+    SetExposure,
+    SetTemperature,
+    WaitWarm,
+)
 from .preflight import TimingModel, timing_from_motion
-
-#: Spot flags of a spot cut by the frame's edge: its centre is biased, so it is recorded but never fitted
-#: (bench.runner.bench_data)
-EDGE_FLAGS = int(SpotFlag.NEAR_EDGE | SpotFlag.ROI_CLIPPED)
 
 #: A move faults once it has lasted this many times its expected duration plus the margin [s]: the margin
 #: covers settling, the controller's own start-up and a table slower than its reported speed.
@@ -101,37 +120,7 @@ class Aborted(Exception):
     """Raised inside the engine when an abort or an emergency stop ends the run."""
 
 
-@dataclass(frozen=True)
-class Interlocks:
-    """What suspends a run.
-
-    Attributes
-    ----------
-    sensor_max_temperature_c : float
-        Above this the sensor is too hot [°C].
-    lamp_fault : bool
-        A lamp fault (or open interlock of the supply) suspends the run.
-    enclosure_open : callable or None
-        Returns True while the enclosure is open (a door switch); None when the bench has none.
-    poll_s : float
-        How often a suspended run looks at the interlocks [s].
-    hold_off_s : float
-        How long a cleared interlock must stay clear before the run goes on [s].
-    """
-
-    sensor_max_temperature_c: float = 60.0
-    lamp_fault: bool = True
-    enclosure_open: object = None
-    poll_s: float = 0.5
-    hold_off_s: float = 1.0
-
-
-@dataclass
-class EngineEvent:
-    kind: str
-    run_id: int | None
-    data: dict = field(default_factory=dict)
-    t_s: float = field(default_factory=time.time)
+EngineEvent = BenchEvent  # the engine's events are the bench's one event type
 
 
 def _safe_name(key: str) -> str:
@@ -151,10 +140,13 @@ class RunEngine:
         The bench geometry the bench believes: turns zenith-stage angles into true zenith (seed 003 eq. 8).
     interlocks : Interlocks
     frames : str
-        What is kept of each frame: "roi" (64×64 px around the spot, and the whole frame when the centroid
-        failed), "full" or "none".
-    full_scale_dn : float
-        Saturation level of the sensor [DN].
+        What is kept of each frame of an image family: "roi" (64×64 px around the spot, and the whole frame
+        when the centroid failed), "full" or "none".
+    family : bench.families.Family or str
+        The sensor family on the bench: what one reading is and how it is taken.
+    axis_order : str
+        The table's kinematics: "azimuth-on-zenith" (seed 003's two stages) or "zenith-on-azimuth" (an alt-az
+        fork mount such as the LX200).
     clock : callable
         Time source for reading timestamps and durations [s].
     """
@@ -162,8 +154,9 @@ class RunEngine:
     ROI_HALF_PX = 32
     ARRIVAL_TOLERANCE_DEG = 2.0 / 60.0  # the LX200's low-precision resolution is 1′
 
-    def __init__(self, devices, catalogue, *, geometry, interlocks: Interlocks = Interlocks(), frames: str = "roi",
-                 full_scale_dn: float = 1023.0, clock=time.monotonic, warm_timeout_s: float = 7200.0):
+    def __init__(self, devices, catalogue, *, geometry, interlocks: Interlocks = DEFAULT_INTERLOCKS,
+                 frames: str = "roi", family: Family | str = "cmos", axis_order: str = "azimuth-on-zenith",
+                 clock=time.monotonic, warm_timeout_s: float = 7200.0):
         if frames not in ("roi", "full", "none"):
             raise ValueError(f"`frames` must be roi, full or none, got {frames!r}")
         self.devices = devices
@@ -171,7 +164,10 @@ class RunEngine:
         self.geometry = geometry
         self.interlocks = interlocks
         self.frames = frames
-        self.full_scale_dn = full_scale_dn
+        self.family = family_named(family) if isinstance(family, str) else family
+        if axis_order not in ("azimuth-on-zenith", "zenith-on-azimuth"):
+            raise ValueError(f"`axis_order` must be azimuth-on-zenith or zenith-on-azimuth, got {axis_order!r}")
+        self.axis_order = axis_order
         self.clock = clock
         self.warm_timeout_s = warm_timeout_s
         self._state = EngineState.IDLE
@@ -179,7 +175,13 @@ class RunEngine:
         self._wake = threading.Condition(self._lock)
         self._pause = self._abort = self._estop = False  # _estop: the latch, cleared only by an acknowledgement
         self._executing = False  # a plan is being executed and its run has not ended yet
+        self._journal_writer = Journal(catalogue)  # the one subscriber whose failure is the run's failure
         self._listeners = []
+        self.handlers = {Measure: self._on_measure, Move: self._on_move, Capture: self._on_capture,
+                         SetExposure: self._on_set_exposure, SetTemperature: self._on_set_temperature,
+                         LampOn: self._on_lamp_on, WaitWarm: self._on_wait_warm, OpenShutter: self._on_open_shutter,
+                         CloseShutter: self._on_close_shutter, Record: self._on_record, Log: self._on_log,
+                         Checkpoint: self._on_checkpoint, MayStopEarly: self._on_may_stop_early}
         self._run_id: int | None = None
         self._shutter_open = False
         self._shutter_wanted = False
@@ -197,11 +199,15 @@ class RunEngine:
         return self._state
 
     def subscribe(self, callback) -> None:
-        """`callback(EngineEvent)` for every state change, point, log line and warning."""
+        """`callback(BenchEvent)` for every state change, point, reading, log line and warning."""
         self._listeners.append(callback)
 
-    def _emit(self, kind: str, **data) -> None:
-        event = EngineEvent(kind, self._run_id, data)
+    def _emit(self, kind: str, *, message: str = "", journal: bool = False, **data) -> None:
+        """Emit a :class:`BenchEvent`; a `journal` one is kept in the run's journal first (a journal that
+        cannot be written fails what the engine was doing: a run must not go on unrecorded)."""
+        event = BenchEvent(kind, self._run_id, data, message, journal)
+        if journal:
+            self._journal_writer(event)
         for callback in list(self._listeners):
             try:
                 callback(event)
@@ -218,9 +224,8 @@ class RunEngine:
                 raise IllegalTransition(f"cannot go from {self._state.value} to {new.value}")
             old, self._state = self._state, new
             self._wake.notify_all()
-        self._emit("state", state=new.value, previous=old.value)
-        if self._run_id is not None:
-            self.catalogue.log_event(self._run_id, "state", f"{old.value} → {new.value}")
+        self._emit("state", message=f"{old.value} → {new.value}", journal=self._run_id is not None,
+                   state=new.value, previous=old.value)
 
     def pause(self) -> None:
         """Ask the run to pause at its next checkpoint (a point in progress is measured again on resume)."""
@@ -304,7 +309,7 @@ class RunEngine:
     def _journal(self, kind: str, message: str) -> None:
         """Journal an event of the run in progress, or of the bench (no run); never raises."""
         try:
-            self.catalogue.log_event(self._run_id, kind, message)
+            self._journal_writer(BenchEvent(kind, self._run_id, {}, message, True))
         except Exception:  # noqa: BLE001 - the catalogue may be what failed
             pass
 
@@ -448,7 +453,8 @@ class RunEngine:
                 try:
                     on_completed()
                 except Exception as exc:  # noqa: BLE001 - a failed fit leaves the recorded data intact
-                    self.catalogue.log_event(run_id, "warning", f"after the run: {type(exc).__name__}: {exc}")
+                    self._journal_writer(BenchEvent("warning", run_id, {},
+                                                    f"after the run: {type(exc).__name__}: {exc}", True))
             self.catalogue.set_run_status(run_id, status, reason)
         except Exception as exc:  # noqa: BLE001 - the catalogue itself failed (disk full …): say so, go idle
             status, reason = "failed", f"could not record the end of the run: {exc}"
@@ -462,7 +468,7 @@ class RunEngine:
                 self._wake.notify_all()
             if previous is not final:
                 try:
-                    self.catalogue.log_event(run_id, "state", f"{previous.value} → {final.value}")
+                    self._journal_writer(BenchEvent("state", run_id, {}, f"{previous.value} → {final.value}", True))
                 except Exception:  # noqa: BLE001 - the catalogue may be what failed
                     pass
             self._emit("finished", status=status, reason=reason, unsafe=unsafe)
@@ -510,12 +516,10 @@ class RunEngine:
         try:
             action()
         except Exception as exc:  # noqa: BLE001 - finalisation must go on
-            self._emit("warning", message=f"{what}: {exc}")
-            if self._run_id is not None:
-                try:
-                    self.catalogue.log_event(self._run_id, "warning", f"{when}, {what}: {exc}")
-                except Exception:  # noqa: BLE001
-                    pass
+            try:
+                self._emit("warning", message=f"{when}, {what}: {exc}", journal=self._run_id is not None)
+            except Exception:  # noqa: BLE001 - the catalogue may be what failed
+                pass
             return exc
         return None
 
@@ -541,56 +545,82 @@ class RunEngine:
 
     # -- messages --------------------------------------------------------------------------------------
     def _handle(self, msg):
-        d = self.devices
+        """Dispatch a plan message through :attr:`handlers` (its type → the method that executes it)."""
         if not isinstance(msg, (Log, Record, MayStopEarly)) and self._abort:
             raise Aborted()  # nothing acts on the bench once an abort or an emergency stop is asked for
-        if isinstance(msg, Measure):
-            return self._measure(msg.point)
-        if isinstance(msg, Move):
-            self._checkpoint()
-            self._move(msg.azimuth_deg, msg.zenith_stage_deg)
-            return None
-        if isinstance(msg, Capture):
-            self._checkpoint()  # no frame while an interlock holds or the bench is paused
-            return [self._read(i) for i in range(msg.frames)]
-        if isinstance(msg, SetExposure):
-            actual = d.sensor.set_exposure_ms(msg.exposure_ms)
-            exposure = msg.exposure_ms if actual is None else actual
-            self._emit("sensor", exposure_ms=exposure)
-            return exposure
-        if isinstance(msg, LampOn):
-            self._lamp_wanted = True
-            d.source.lamp_on()
-            self._observe_source(lamp_on=True)
-            return None
-        if isinstance(msg, WaitWarm):
-            self._wait_warm()
-            return None
-        if isinstance(msg, OpenShutter):
-            self._shutter_wanted = True
-            self._checkpoint()  # opens it once nothing holds the bench
-            return None
-        if isinstance(msg, CloseShutter):
-            self._shutter_wanted = False
-            d.source.close_shutter()
-            self._shutter_open = False
-            self._observe_source(shutter_open=False)
-            return None
-        if isinstance(msg, Record):
-            self.catalogue.set_run_value(self._run_id, msg.key, msg.value)
-            self._emit("record", key=msg.key, value=msg.value)  # a stage's result (the exposure, the centre …)
-            return None
-        if isinstance(msg, Log):
-            self.catalogue.log_event(self._run_id, "log", msg.message)
-            self._emit("log", message=msg.message)
-            return None
-        if isinstance(msg, Checkpoint):
-            self._checkpoint()
-            return None
-        if isinstance(msg, MayStopEarly):
-            self.catalogue.log_event(self._run_id, "log", f"this plan may stop early ({msg.reason})")
-            return None
-        raise TypeError(f"the engine does not know the message {msg!r}")
+        handler = self.handlers.get(type(msg))
+        if handler is None:
+            raise TypeError(f"the engine does not know the message {msg!r}")
+        return handler(msg)
+
+    def _on_measure(self, msg: Measure):
+        return self._measure(msg.point)
+
+    def _on_move(self, msg: Move) -> None:
+        self._checkpoint()
+        self._move(msg.azimuth_deg, msg.zenith_stage_deg)
+
+    def _on_capture(self, msg: Capture) -> list[Reading]:
+        self._checkpoint()  # no reading while an interlock holds or the bench is paused
+        return [self._read(i) for i in range(msg.frames)]
+
+    def _on_set_exposure(self, msg: SetExposure) -> float:
+        actual = self.devices.sensor.set_exposure_ms(msg.exposure_ms)
+        exposure = msg.exposure_ms if actual is None else actual
+        self._emit("sensor", exposure_ms=exposure)
+        return exposure
+
+    def _on_set_temperature(self, msg: SetTemperature) -> float:
+        """Set the sensor's temperature (its on-board thermal control) and wait until it is within the
+        tolerance, watching for an abort; answers the temperature reached [°C]."""
+        sensor = self.devices.sensor
+        sensor.set_temperature_setpoint_c(msg.temperature_c)
+        wall0, bench0 = time.monotonic(), self.clock()
+        while True:
+            temperature = float(sensor.temperature_c())
+            self._observe("sensor", {"temperature_c": temperature})
+            if abs(temperature - msg.temperature_c) <= msg.tolerance_c:
+                return temperature
+            bench = self.clock() - bench0
+            if (bench if bench > 0 else time.monotonic() - wall0) > msg.timeout_s:
+                raise DeviceTimeout(getattr(sensor, "name", "sensor"),
+                                    f"the sensor reached {temperature:.2f} °C, not {msg.temperature_c:.2f} ± "
+                                    f"{msg.tolerance_c:g} °C, in {msg.timeout_s:g} s")
+            with self._lock:
+                self._wake.wait(self.interlocks.poll_s)
+            if self._abort:
+                raise Aborted()
+
+    def _on_lamp_on(self, msg: LampOn) -> None:
+        self._lamp_wanted = True
+        self.devices.source.lamp_on()
+        self._observe_source(lamp_on=True)
+
+    def _on_wait_warm(self, msg: WaitWarm) -> None:
+        self._wait_warm()
+
+    def _on_open_shutter(self, msg: OpenShutter) -> None:
+        self._shutter_wanted = True
+        self._checkpoint()  # opens it once nothing holds the bench
+
+    def _on_close_shutter(self, msg: CloseShutter) -> None:
+        self._shutter_wanted = False
+        self.devices.source.close_shutter()
+        self._shutter_open = False
+        self._observe_source(shutter_open=False)
+
+    def _on_record(self, msg: Record) -> None:
+        self.catalogue.set_run_value(self._run_id, msg.key, msg.value)
+        self._emit("record", key=msg.key, value=msg.value)  # a stage's result (the exposure, the centre …)
+
+    def _on_log(self, msg: Log) -> None:
+        self._emit("log", message=msg.message, journal=True)
+
+    def _on_checkpoint(self, msg: Checkpoint) -> None:
+        self._checkpoint()
+
+    def _on_may_stop_early(self, msg: MayStopEarly) -> None:
+        self._journal_writer(BenchEvent("log", self._run_id, {}, f"this plan may stop early ({msg.reason})", True))
 
     def _act(self, action) -> None:
         """Start an action on the bench unless an abort came first (an e-stop sets its flag under this lock)."""
@@ -695,15 +725,11 @@ class RunEngine:
         self._observe("source", {"lamp_on": True, "warm": True, "fault": False}, flags=("warm",))
 
     def _read(self, repeat: int) -> Reading:
-        frame = self.devices.sensor.capture()
-        self.last_frame = frame  # for a live view; never read by the engine itself
-        t = self.clock()
-        try:
-            spot = find_spot(frame, saturation_dn=self.full_scale_dn)
-            return Reading(repeat, spot.x_px, spot.y_px, spot.peak_dn, spot.n_pixels, int(spot.flags), "ok", t, frame)
-        except CentroidError as exc:
-            return Reading(repeat, float("nan"), float("nan"), float(getattr(exc, "peak_dn", np.nan) or np.nan), 0, 0,
-                           type(exc).__name__, t, frame)
+        """One reading, taken as the run's family takes it (:attr:`bench.families.Family.read`)."""
+        reading = self.family.read(self.devices.sensor, repeat, self.clock)
+        if reading.frame is not None:
+            self.last_frame = reading.frame  # for a live view; never read by the engine itself
+        return reading
 
     def _interrupted(self) -> bool:
         return self._abort or self._pause or self._interlock_tripped() is not None
@@ -712,18 +738,17 @@ class RunEngine:
         if point.key in self._done:
             return self._recorded(point.key)
         while True:
-            self._checkpoint()
+            # a Measure is a Move and its readings (the same handlers as the messages), kept as one point
             started = time.time()
             t0 = time.monotonic()
-            self._move(point.azimuth_deg, point.zenith_stage_deg)
+            self._on_move(Move(point.azimuth_deg, point.zenith_stage_deg))
             readings = []
             for repeat in range(point.repeats):
                 if self._abort or self._pause:
                     break
                 readings.append(self._read(repeat))
             if len(readings) < point.repeats or self._interlock_tripped() is not None:
-                self.catalogue.log_event(self._run_id, "warning",
-                                         f"point {point.key} interrupted; it will be measured again")
+                self._emit("warning", message=f"point {point.key} interrupted; it will be measured again", journal=True)
                 continue  # the checkpoint pauses or suspends; the point starts over
             zenith, azimuth = self.body_direction(point)
             readings = [dataclasses.replace(r, zenith_deg=zenith, azimuth_body_deg=azimuth) for r in readings]
@@ -733,43 +758,40 @@ class RunEngine:
             self._point_times.append(time.monotonic() - t0)
             done, total = len(self._done), self._progress[1]
             mean = float(np.mean(self._point_times[-20:]))
-            good = [r for r in readings if r.ok]
             self._emit("point", key=point.key, stage=point.stage, azimuth_deg=point.azimuth_deg,
                        zenith_stage_deg=point.zenith_stage_deg, zenith_deg=zenith, azimuth_body_deg=azimuth,
                        exposure_ms=exposure, index=done, total=total, eta_s=max(total - done, 0) * mean,
-                       spots=[(r.x_px, r.y_px) for r in good], n_frames=len(readings),
-                       # a spot cut by the frame's edge is recorded but never fitted (bench.runner.bench_data)
-                       spots_clipped=[bool(r.flags & EDGE_FLAGS) for r in good])
+                       n_frames=len(readings), family=self.family.name, **self.family.summary(readings))
             return readings
 
-    def _recorded(self, key: str):
-        rows = [r for r in self.catalogue.readings(self._lineage) if r["key"] == key]
+    def _recorded(self, key: str) -> list[Reading]:
+        """The readings the lineage recorded for a point (the answer to a Measure of a point already done)."""
         nan = float("nan")
-        return [Reading(r["repeat"], r["x_px"] if r["x_px"] is not None else nan,
-                        r["y_px"] if r["y_px"] is not None else nan, r["peak_dn"] or 0.0,
-                        r["n_pixels"] or 0, r["flags"] or 0, r["status"], r["t_s"] or 0.0,
-                        zenith_deg=r["zenith_deg"] if r["zenith_deg"] is not None else nan,
-                        azimuth_body_deg=r["azimuth_body_deg"] if r["azimuth_body_deg"] is not None else nan)
-                for r in rows]
+        return [Reading(r.repeat, r.status, r.t_s or 0.0, dict(r.values), None,
+                        r.zenith_deg if r.zenith_deg is not None else nan,
+                        r.azimuth_body_deg if r.azimuth_body_deg is not None else nan)
+                for r in self.catalogue.readings(self._lineage) if r.key == key]
 
     def body_direction(self, point) -> tuple[float, float]:
-        """The sun direction in the body frame the bench believes for a point (zenith, azimuth) [°].
+        """The sun direction in the body frame the bench believes for a point (zenith, azimuth) [°]: seed 003's
+        azimuth-on-zenith table through eq. 8 with the bench geometry, or an alt-az fork mount's two rotations
+        (:mod:`calibration.mount`; the fork's angles are not the sun's, digest 002 §7 item 9).
 
         References
         ----------
-        seed 003, eq. 8 (a negative stage angle is the positive zenith on the opposite azimuth).
+        seed 003, eq. 8 (:func:`calibration.stage_geometry.body_direction_deg`); seed 002 §3.2.1.
         """
-        geometry = self.geometry
-        theta = float(incidence_from_stage_angle(point.zenith_stage_deg, geometry.lever_arm_mm,
-                                                 geometry.source_distance_mm))
-        return abs(theta), float(np.mod(point.azimuth_deg + (180.0 if theta < 0 else 0.0), 360.0))
+        if self.axis_order == "zenith-on-azimuth":
+            fork = ForkMount(arm_ratio=arm_ratio(self.geometry.lever_arm_mm, self.geometry.source_distance_mm))
+            zenith, azimuth = zenith_azimuth_from_vector(fork_vectors(point.azimuth_deg, point.zenith_stage_deg, fork))
+        else:
+            zenith, azimuth = body_direction_deg(point.azimuth_deg, point.zenith_stage_deg, self.geometry)
+        return float(zenith), float(azimuth)
 
     def _record(self, point, readings, started, exposure_ms: float | None) -> None:
         zenith, azimuth_body = self.body_direction(point)
         paths = self._save_frames(point, readings)
-        rows = [{"repeat": r.repeat, "x_px": None if not r.ok else r.x_px, "y_px": None if not r.ok else r.y_px,
-                 "peak_dn": None if not np.isfinite(r.peak_dn) else float(r.peak_dn), "n_pixels": r.n_pixels,
-                 "flags": r.flags, "status": r.status, "frame_path": paths.get(r.repeat), "t_s": r.t_s}
+        rows = [{**r.values, "repeat": r.repeat, "status": r.status, "frame_path": paths.get(r.repeat), "t_s": r.t_s}
                 for r in readings]
         self.catalogue.record_point(self._run_id, point.key, stage=point.stage, azimuth_deg=point.azimuth_deg,
                                     zenith_stage_deg=point.zenith_stage_deg, zenith_deg=zenith,
@@ -777,13 +799,15 @@ class RunEngine:
                                     readings=rows, started_utc=started)
 
     def _exposure(self) -> float | None:
+        if not self.family.has_exposure:
+            return None
         try:
             return float(self.devices.sensor.exposure_ms())
         except Exception:  # noqa: BLE001 - the exposure is provenance, not worth a failed point
             return None
 
     def _save_frames(self, point, readings) -> dict[int, str]:
-        if self.frames == "none" or not readings:
+        if self.frames == "none" or not any(r.frame is not None for r in readings):
             return {}
         folder = self.catalogue.frames_dir(self._run_id)
         folder.mkdir(parents=True, exist_ok=True)
@@ -793,10 +817,11 @@ class RunEngine:
             frame = r.frame
             if frame is None:
                 continue
-            if self.frames == "roi" and r.ok:
+            x, y = r.values.get("x_px"), r.values.get("y_px")  # a reading with a spot keeps the frame around it
+            if self.frames == "roi" and r.ok and x is not None and y is not None and np.isfinite([x, y]).all():
                 h, w = frame.shape
-                x0 = int(min(max(round(r.x_px) - self.ROI_HALF_PX, 0), max(w - 2 * self.ROI_HALF_PX, 0)))
-                y0 = int(min(max(round(r.y_px) - self.ROI_HALF_PX, 0), max(h - 2 * self.ROI_HALF_PX, 0)))
+                x0 = int(min(max(round(x) - self.ROI_HALF_PX, 0), max(w - 2 * self.ROI_HALF_PX, 0)))
+                y0 = int(min(max(round(y) - self.ROI_HALF_PX, 0), max(h - 2 * self.ROI_HALF_PX, 0)))
                 arrays[f"frame_{r.repeat}"] = frame[y0: y0 + 2 * self.ROI_HALF_PX, x0: x0 + 2 * self.ROI_HALF_PX]
                 arrays[f"origin_{r.repeat}"] = np.array([x0, y0])
             else:
@@ -866,8 +891,8 @@ class RunEngine:
         self._safe("table", self.devices.table.stop, state.value)
         self._pose = None
         self._to(state)
-        self.catalogue.log_event(self._run_id, state.value, reason)
-        self._emit(state.value, reason=reason)
+        self.catalogue.set_run_status(self._run_id, state.value, reason)  # a reader beside the engine sees it too
+        self._emit(state.value, message=reason, journal=True, reason=reason)
         self._clear_since = None
         with self._lock:
             while not self._abort and not cleared():
@@ -880,4 +905,5 @@ class RunEngine:
         if self._lamp_wanted:
             self._wait_warm()
         self._to(EngineState.RUNNING)
-        self.catalogue.log_event(self._run_id, "running", f"resumed after: {reason}")
+        self.catalogue.set_run_status(self._run_id, "running")
+        self._emit("running", message=f"resumed after: {reason}", journal=True)

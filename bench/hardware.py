@@ -24,12 +24,13 @@ from dataclasses import dataclass, field
 
 from drivers.cmos_sensor import CmosSunSensor
 from drivers.errors import DeviceError
-from drivers.interfaces import ImageSensor, Limits, RotaryTable, SunSimulator, TwoAxisTable
+from drivers.interfaces import ImageSensor, Limits, QuadrantSensor, RotaryTable, SunSimulator, TwoAxisTable
 from drivers.manual import AskCallback, ManualAxis, console_ask
 from drivers.meade import LX200Table
 from drivers.newport_smc100 import Smc100Axis
 from drivers.oriel69907 import BAUDRATE as ORIEL_BAUDRATE
 from drivers.oriel69907 import Oriel69907
+from drivers.qd_sensor import QdSunSensor
 from drivers.scpi_supply import E363XA_SERIAL, ScpiSupply
 from drivers.shutter import BAUDRATE as SC10_BAUDRATE
 from drivers.shutter import ThorlabsSC10
@@ -46,6 +47,7 @@ log.addHandler(logging.NullHandler())
 LX200_BAUDRATE = 9600  # 8N1, no handshake (drivers/meade.py, anchors-protocols §1.1)
 SMC100_SERIAL = {"baudrate": 57600, "xonxoff": True}  # drivers/newport_smc100.py, anchors-protocols §3.1
 CMOS_BAUDRATE = 921600  # RS-485 adapter of the module (drivers/cmos_sensor.py)
+QD_BAUDRATE = 115200  # the QD module's UART (drivers/qd_protocol.py)
 APT_DWELL_S = 0.05  # RTS-cycle dwell of the APT init on hardware (anchors-protocols §2.1)
 SMC100_RESET_WAIT_S = 1.0  # wait after RS before the controller answers (pymeasure)
 
@@ -80,7 +82,8 @@ class BenchDevices:
     ----------
     table : RotaryTable
     source : SunSimulator
-    sensor : ImageSensor
+    sensor : ImageSensor or QuadrantSensor
+        The sensor of the bench's family (bench.families).
     identities : dict of str to str
         ``table``, ``source``, ``sensor`` → what the device reported as its identity, for run provenance.
     simulated : bool
@@ -91,7 +94,7 @@ class BenchDevices:
 
     table: RotaryTable
     source: SunSimulator
-    sensor: ImageSensor
+    sensor: ImageSensor | QuadrantSensor
     identities: dict[str, str]
     simulated: bool
     sim: SimBench | None = None
@@ -109,7 +112,7 @@ class BenchDevices:
         if errors:
             raise errors[0]
 
-    def __enter__(self) -> "BenchDevices":
+    def __enter__(self) -> BenchDevices:
         return self
 
     def __exit__(self, *exc_info) -> None:
@@ -215,8 +218,7 @@ class _Connector:
     def _timing(self, simulated: bool, warmup_s: float) -> tuple[Callable[[], float], float]:
         """(clock, warm-up [s]) of a supply: the simulated world's for a simulated one (module docstring)."""
         if simulated:
-            world = self.sim.world
-            return world.clock.now, world.lamp.spec.warm_time_s
+            return self.sim.clock.now, self.sim.lamp_warm_time_s
         return time.monotonic, warmup_s
 
     def source(self) -> SunSimulator:
@@ -249,7 +251,7 @@ class _Connector:
             return LedSource(supply, config.current_a, voltage_v=config.voltage_v, warmup_s=warmup_s)
 
     # -- sensor ---------------------------------------------------------------------------------------
-    def sensor(self) -> ImageSensor:
+    def sensor(self) -> ImageSensor | QuadrantSensor:
         config = self.file.devices.sensor
         if config.kind == "camera":
             from drivers.usb_camera import UsbCamera  # OpenCV loads only for a camera bench
@@ -260,6 +262,14 @@ class _Connector:
             self.closers.append(camera.close)
             return camera
         url, _ = self.url(config.url, "sensor")
+        if config.kind == "qd":
+            with _connecting("sensor", url):
+                port = open_port(url, baudrate=QD_BAUDRATE, timeout_s=config.timeout_s)
+                self.closers.append(port.close)
+                sensor = QdSunSensor(port)
+                sensor.identify()  # a silent module fails here, named
+            self.where["sensor"] = url
+            return sensor
         with _connecting("sensor", url):
             port = open_port(url, baudrate=CMOS_BAUDRATE, timeout_s=config.timeout_s)
             self.closers.append(port.close)

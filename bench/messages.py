@@ -8,8 +8,9 @@ from ``yield`` is the engine's answer (the readings of a ``Measure``, the exposu
 
 from __future__ import annotations
 
+from collections.abc import Generator
 from dataclasses import dataclass, field
-from typing import Any, Generator
+from typing import Any
 
 import numpy as np
 
@@ -41,34 +42,29 @@ class Point:
 
 @dataclass(frozen=True)
 class Reading:
-    """One frame's centroid.
+    """One reading of the sensor, as its family declares it (:mod:`bench.descriptor`).
 
     Attributes
     ----------
     repeat : int
-    x_px, y_px : float
-        Spot centre [px]; NaN when `status` is not "ok".
-    peak_dn : float
-    n_pixels : int
-    flags : int
-        :class:`calibration.centroid.SpotFlag` bits.
     status : str
-        "ok" or the name of the centroid error ("NoSpotError", "SaturatedSpotError", "MultipleSpotsError").
+        "ok" or the name of what went wrong (a centroid error, a saturated channel …).
     t_s : float
-        Time of the frame on the bench clock [s].
+        Time of the reading on the bench clock [s].
+    values : dict
+        The family's fields (the CMOS spot centre ``x_px, y_px, peak_dn, n_pixels, flags``; the QD currents …);
+        a missing number is NaN or None.
+    frame : ndarray or None
+        The image behind the reading (image families), kept as a file, never in the catalogue.
     zenith_deg, azimuth_body_deg : float
         The sun direction in the sensor body frame the bench believes for the point's stage angles (seed 003
         eq. 8 with the bench geometry), as the engine records it [°]; NaN where no bench answered (preflight).
     """
 
     repeat: int
-    x_px: float
-    y_px: float
-    peak_dn: float
-    n_pixels: int
-    flags: int
     status: str
     t_s: float = 0.0
+    values: dict = field(default_factory=dict, compare=False)
     frame: np.ndarray | None = field(default=None, compare=False, repr=False)
     zenith_deg: float = float("nan")
     azimuth_body_deg: float = float("nan")
@@ -76,6 +72,11 @@ class Reading:
     @property
     def ok(self) -> bool:
         return self.status == "ok"
+
+    def value(self, name: str, default: Any = float("nan")) -> Any:
+        """A field of the family's reading; `default` when missing."""
+        v = self.values.get(name)
+        return default if v is None else v
 
 
 class Msg:
@@ -123,8 +124,18 @@ class SetExposure(Msg):
 
 
 @dataclass(frozen=True)
+class SetTemperature(Msg):
+    """Set the sensor's temperature (its on-board thermal control) and wait until it is within `tolerance_c`;
+    the answer is the temperature reached [°C]. A sensor still off after `timeout_s` faults the run."""
+
+    temperature_c: float
+    tolerance_c: float = 0.2
+    timeout_s: float = 900.0
+
+
+@dataclass(frozen=True)
 class Capture(Msg):
-    """Take frames where the table is and answer their readings (not recorded: probes, auto-exposure)."""
+    """Take readings where the table is and answer them (not recorded: probes, auto-exposure)."""
 
     frames: int = 1
 

@@ -19,12 +19,26 @@ import numpy as np
 
 from calibration.centroid import SpotFlag
 from calibration.data import BenchData
-from calibration.design import BenchGeometry
+from calibration.design import FULL_SCALE_DN, BenchGeometry
 from calibration.design_of_experiments import design_experiment, order_tour, parameter_targets, stopping_decision
+from calibration.procedure import centre_crossing_deg, tilt_harmonic_deg
 
 from .campaign import Alignment, AutoExposure, Campaign, GridProcedure, PhysicalProcedure, Seed003Procedure
-from .messages import (Capture, CloseShutter, LampOn, Log, MayStopEarly, Measure, Move, OpenShutter, Plan, Point,
-                       Record, SetExposure, WaitWarm)
+from .messages import (
+    Capture,
+    CloseShutter,
+    LampOn,
+    Log,
+    MayStopEarly,
+    Measure,
+    Move,
+    OpenShutter,
+    Plan,
+    Point,
+    Record,
+    SetExposure,
+    WaitWarm,
+)
 from .preflight import TimingModel
 
 # seed 003 §4.1 alignment tolerances
@@ -48,10 +62,12 @@ def alignment_violations(alignment: Alignment | None, geometry: BenchGeometry) -
     problems = []
     if abs(alignment.l1_mm - alignment.l2_mm) > LATERAL_TOLERANCE_MM:
         problems.append(f"alignment: |L1 − L2| = {abs(alignment.l1_mm - alignment.l2_mm):.2f} mm > "
-                        f"{LATERAL_TOLERANCE_MM} mm; move the mechanism by ΔL = {alignment.l2_mm - alignment.l1_mm:+.2f} mm")
+                        f"{LATERAL_TOLERANCE_MM} mm; move the mechanism by "
+                        f"ΔL = {alignment.l2_mm - alignment.l1_mm:+.2f} mm")
     if abs(alignment.h1_mm - alignment.h2_mm) > HEIGHT_TOLERANCE_MM:
         problems.append(f"alignment: |h1 − h2| = {abs(alignment.h1_mm - alignment.h2_mm):.2f} mm > "
-                        f"{HEIGHT_TOLERANCE_MM} mm; move the mechanism by Δh = {alignment.h2_mm - alignment.h1_mm:+.2f} mm")
+                        f"{HEIGHT_TOLERANCE_MM} mm; move the mechanism by "
+                        f"Δh = {alignment.h2_mm - alignment.h1_mm:+.2f} mm")
     if abs(alignment.distance_mm - geometry.source_distance_mm) > DISTANCE_TOLERANCE_MM:
         problems.append(f"alignment: sensor-to-simulator distance {alignment.distance_mm:.1f} mm differs from the "
                         f"bench's {geometry.source_distance_mm:.1f} mm by more than {DISTANCE_TOLERANCE_MM} mm")
@@ -78,7 +94,7 @@ def auto_exposure(spec: AutoExposure, full_scale_dn: float) -> Plan:
         elif reading.status == "SaturatedSpotError":
             wanted = exposure / 3.0
         elif reading.ok:
-            fraction = reading.peak_dn / full_scale_dn
+            fraction = reading.value("peak_dn") / full_scale_dn
             if abs(fraction - spec.target_peak_fraction) <= spec.tolerance * spec.target_peak_fraction:
                 yield Record("exposure_ms", exposure)
                 return exposure
@@ -97,7 +113,7 @@ class PlanError(RuntimeError):
 
 
 def _mean_spot(readings) -> np.ndarray | None:
-    ok = [(r.x_px, r.y_px) for r in readings if r.ok and np.isfinite(r.x_px)]
+    ok = [(r.value("x_px"), r.value("y_px")) for r in readings if r.ok and np.isfinite(r.value("x_px"))]
     return np.mean(ok, axis=0) if ok else None
 
 
@@ -120,9 +136,10 @@ def tilt_stage(azimuths, probe_deg: float, repeats: int, centre) -> Plan:
     """Stage 2 of the revised procedure: along each azimuth, the zenith-stage angle that brings the spot back
     onto the centre found in stage 1.
 
-    Each azimuth is probed at Ω = ±`probe_deg`; the spot moves along a line, and the angle where its
-    projection crosses the centre is interpolated. The mean offset is the bench's non-parallelism (seed 003
-    found 0.47°), the first harmonic over azimuth the tilt seen along 0° (α) and 90° (β) (eqs. 14–15).
+    Each azimuth is probed at Ω = ±`probe_deg`; the angle where the spot crosses the centre is interpolated
+    (:func:`calibration.procedure.centre_crossing_deg`). The first harmonic of those angles over azimuth
+    (:func:`calibration.procedure.tilt_harmonic_deg`) gives the bench's non-parallelism (its mean; seed 003
+    found 0.47°) and the tilt seen along 0° (α) and 90° (β) (eqs. 14–15).
 
     References
     ----------
@@ -136,18 +153,14 @@ def tilt_stage(azimuths, probe_deg: float, repeats: int, centre) -> Plan:
             spots.append(_mean_spot(readings))
         if centre is None or spots[0] is None or spots[1] is None:
             continue
-        motion = spots[1] - spots[0]
-        if not np.dot(motion, motion) > 0:
-            continue
-        t = float(np.dot(np.asarray(centre) - spots[0], motion) / np.dot(motion, motion))
-        offsets[azimuth] = -probe_deg + 2.0 * probe_deg * t
+        offset = float(centre_crossing_deg(spots[0], spots[1], centre, probe_deg))
+        if np.isfinite(offset):  # NaN: the spot did not move
+            offsets[azimuth] = offset
     result = None
     if len(offsets) >= 3:
-        az = np.radians(list(offsets))
-        design = np.column_stack([np.ones(az.size), np.cos(az), np.sin(az)])
-        (mean, alpha, beta), *_ = np.linalg.lstsq(design, np.array(list(offsets.values())), rcond=None)
-        result = {"offsets_deg": {f"{a:g}": v for a, v in offsets.items()}, "mean_offset_deg": float(mean),
-                  "tilt_x_deg": float(alpha), "tilt_y_deg": float(beta)}
+        mean, alpha, beta = tilt_harmonic_deg(list(offsets), list(offsets.values()))
+        result = {"offsets_deg": {f"{a:g}": v for a, v in offsets.items()}, "mean_offset_deg": mean,
+                  "tilt_x_deg": alpha, "tilt_y_deg": beta}
     yield Record("tilt_stage", result)
     return result
 
@@ -174,9 +187,9 @@ def _light_up(exposure_spec: AutoExposure, full_scale_dn: float) -> Plan:
     return (yield from auto_exposure(exposure_spec, full_scale_dn))
 
 
-def seed003_plan(procedure: Seed003Procedure, *, full_scale_dn: float = 1023.0) -> Plan:
+def seed003_plan(procedure: Seed003Procedure, *, full_scale_dn: float = FULL_SCALE_DN) -> Plan:
     """The seed 003 calibration procedure (module docstring)."""
-    azimuths = [float(a) for a in np.arange(0.0, 360.0 - 1e-9, procedure.azimuth_step_deg)]
+    azimuths = list(procedure.azimuths_deg)
     yield Log(f"seed 003 procedure: {len(azimuths)} azimuths, zenith stage {list(procedure.zenith_stage_deg)}°")
     yield from _light_up(procedure.auto_exposure, full_scale_dn)
     centre = yield from centre_stage(azimuths, procedure.centre_repeats)
@@ -186,7 +199,7 @@ def seed003_plan(procedure: Seed003Procedure, *, full_scale_dn: float = 1023.0) 
     yield CloseShutter()
 
 
-def grid_plan(procedure: GridProcedure, *, full_scale_dn: float = 1023.0) -> Plan:
+def grid_plan(procedure: GridProcedure, *, full_scale_dn: float = FULL_SCALE_DN) -> Plan:
     """A plain grid of every azimuth at every zenith-stage angle."""
     yield from _light_up(procedure.auto_exposure, full_scale_dn)
     yield from grid_stage(procedure.azimuths_deg, procedure.zenith_stage_deg, procedure.repeats, order=procedure.order)
@@ -201,10 +214,12 @@ def bench_data_of(readings) -> BenchData:
     """The fittable frames of readings answered by the engine: a spot, not flagged as cut by an edge, and the
     body direction the bench believes (the dry readings of preflight have neither, so they give no data)."""
     rows = [r for r in readings
-            if r.ok and np.isfinite(r.x_px) and np.isfinite(r.y_px) and not r.flags & UNFITTED_FLAGS
+            if r.ok and np.isfinite(r.value("x_px")) and np.isfinite(r.value("y_px"))
+            and not int(r.value("flags", 0)) & UNFITTED_FLAGS
             and np.isfinite(r.zenith_deg) and 0.0 <= r.zenith_deg < 90.0 and np.isfinite(r.azimuth_body_deg)]
-    column = lambda name: np.array([getattr(r, name) for r in rows], dtype=float)  # noqa: E731
-    return BenchData(column("zenith_deg"), column("azimuth_body_deg"), column("x_px"), column("y_px"),
+    pose = lambda name: np.array([getattr(r, name) for r in rows], dtype=float)  # noqa: E731
+    spot = lambda name: np.array([r.value(name) for r in rows], dtype=float)  # noqa: E731
+    return BenchData(pose("zenith_deg"), pose("azimuth_body_deg"), spot("x_px"), spot("y_px"),
                      repeat=np.array([r.repeat for r in rows], dtype=int))
 
 
@@ -215,7 +230,7 @@ def _stage_point(stage: str, zenith_deg: float, azimuth_deg: float, repeats: int
     return Point(point_key(stage, azimuth, omega), stage, azimuth, omega, repeats)
 
 
-def physical_plan(procedure: PhysicalProcedure, *, full_scale_dn: float = 1023.0,
+def physical_plan(procedure: PhysicalProcedure, *, full_scale_dn: float = FULL_SCALE_DN,
                   timing: TimingModel = TimingModel()) -> Plan:
     """The physical model's procedure (issue 9): light up, then measure D-optimal directions batch by batch.
 
@@ -294,7 +309,7 @@ def physical_plan(procedure: PhysicalProcedure, *, full_scale_dn: float = 1023.0
     yield CloseShutter()
 
 
-def make_plan(campaign: Campaign, *, full_scale_dn: float = 1023.0, timing: TimingModel | None = None) -> Plan:
+def make_plan(campaign: Campaign, *, full_scale_dn: float = FULL_SCALE_DN, timing: TimingModel | None = None) -> Plan:
     """The plan a campaign names. `timing` (the table's axis speeds) orders the physical plan's tour."""
     if campaign.plan == "seed003":
         return seed003_plan(campaign.seed003, full_scale_dn=full_scale_dn)

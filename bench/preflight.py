@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from calibration.design_of_experiments import move_time_s
 from drivers.errors import LimitError
 
-from .messages import Capture, MayStopEarly, Measure, Move, Plan, Point, Reading, SetExposure, WaitWarm
+from .messages import Capture, MayStopEarly, Measure, Move, Plan, Point, Reading, SetExposure, SetTemperature, WaitWarm
 
 
 @dataclass(frozen=True)
@@ -30,6 +30,8 @@ class TimingModel:
         Read-out, transfer and centroid per frame, beyond the exposure [s].
     warmup_s : float
         Lamp warm-up from cold [s].
+    temperature_settle_s : float
+        A sensor's thermal control reaching a new set-point (an upper estimate) [s].
     azimuth_rate_deg_s, azimuth_accel_deg_s2 : float or None
         The azimuth axis's speed and acceleration when they differ from the zenith axis's.
 
@@ -41,6 +43,7 @@ class TimingModel:
     settle_s: float = 0.05
     frame_overhead_s: float = 0.02
     warmup_s: float = 0.0
+    temperature_settle_s: float = 180.0
     azimuth_rate_deg_s: float | None = None
     azimuth_accel_deg_s2: float | None = None
 
@@ -120,7 +123,7 @@ class PreflightReport:
         return not self.violations
 
 
-def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_peak_dn: float = 716.0,
+def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_reading=None,
               exposure_ms: float = 4.0, extra_violations=()) -> PreflightReport:
     """Expand `plan` with a dry executor.
 
@@ -130,8 +133,9 @@ def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_pea
     check : callable (azimuth_deg, zenith_stage_deg) -> None
         Raises :class:`~drivers.errors.LimitError` for a pose outside the limits (``RotaryTable.check``).
     timing : TimingModel
-    dry_peak_dn : float
-        Peak the dry readings report (the auto-exposure target, so it settles at once) [DN].
+    dry_reading : callable (repeat) -> Reading, optional
+        What a reading answers in the dry run (the family's :attr:`~bench.families.Family.dry_reading`: for a
+        CMOS sensor a spot at the auto-exposure's target, so it settles at once); default: an empty "ok".
     exposure_ms : float
         Exposure assumed until the plan sets one [ms].
     extra_violations : iterable of str
@@ -162,7 +166,7 @@ def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_pea
         nonlocal n_frames, duration
         n_frames += n
         duration += n * (exposure / 1000.0 + timing.frame_overhead_s)
-        return [Reading(i, float("nan"), float("nan"), dry_peak_dn, 0, 0, "ok") for i in range(n)]
+        return [dry_reading(i) if dry_reading is not None else Reading(i, "ok") for i in range(n)]
 
     warmup = 0.0
     upper_bound = None
@@ -183,6 +187,9 @@ def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_pea
             answer = frames(msg.frames)
         elif isinstance(msg, SetExposure):
             exposure = answer = msg.exposure_ms
+        elif isinstance(msg, SetTemperature):
+            duration += timing.temperature_settle_s
+            answer = msg.temperature_c
         elif isinstance(msg, WaitWarm):
             duration += timing.warmup_s
             warmup += timing.warmup_s
@@ -192,3 +199,14 @@ def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_pea
     if len(set(keys)) != len(keys):
         violations.append("plan error: a point key appears twice")
     return PreflightReport(points, n_frames, n_moves, duration, violations, warmup, upper_bound)
+
+
+def preflight_campaign(campaign, *, check, timing: TimingModel = TimingModel(), mount=None,
+                       extra_violations=()) -> PreflightReport:
+    """Dry-run the plan a campaign names, for one sensor, with the readings its sensor family answers dry
+    (`mount`: the table's kinematics, :func:`bench.families.table_mount`)."""
+    from .families import family_of_plan
+
+    family = family_of_plan(campaign.plan)
+    return preflight(family.make_plan(campaign, timing=timing, mount=mount), check=check, timing=timing,
+                     dry_reading=lambda i: family.dry_reading(i, campaign), extra_violations=extra_violations)

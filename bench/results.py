@@ -30,17 +30,18 @@ def _mean_spots(catalogue, run_id: int, rejected: dict[int, str]) -> list[dict]:
     readings = defaultdict(list)
     for reading in catalogue.readings(run_id):
         if has_spot(reading):
-            readings[reading["point_id"]].append(reading)
+            readings[reading.point_id].append(reading)
     points = []
     for point in catalogue.points(run_id):
         spots = readings.get(point["id"], [])
-        left_out = [{"reading_id": r["id"], "reason": EDGE_REASON if clipped(r) else rejected[r["id"]]}
-                    for r in spots if clipped(r) or r["id"] in rejected]
+        left_out = [{"reading_id": r.id, "reason": EDGE_REASON if clipped(r) else rejected[r.id]}
+                    for r in spots if clipped(r) or r.id in rejected]
         out = {entry["reading_id"] for entry in left_out}
-        used = [r for r in spots if r["id"] not in out]
+        used = [r for r in spots if r.id not in out]
         # a point left out whole is drawn where its spots were, marked as left out
         mean_of = used or spots
-        mean = ([sum(r[c] for r in mean_of) / len(mean_of) for c in ("x_px", "y_px")] if mean_of else [None, None])
+        mean = ([sum(r.value(c) for r in mean_of) / len(mean_of) for c in ("x_px", "y_px")] if mean_of
+                else [None, None])
         reasons = list(dict.fromkeys(entry["reason"] for entry in left_out))
         points.append({**point, "n_ok": len(spots), "x_px": mean[0], "y_px": mean[1],
                        "excluded": "; ".join(reasons) if spots and not used else None, "frames_left_out": left_out})
@@ -53,6 +54,19 @@ def point_means(catalogue, run_id: int) -> list[dict]:
     the detector's edge is left out of every fit: its mean is of those spots, and `excluded` says why
     (None for the others); `frames_left_out` lists each clipped frame (`reading_id`, `reason`)."""
     return _mean_spots(catalogue, run_id, {})
+
+
+def point_summaries(catalogue, run_id: int) -> dict[int, dict]:
+    """What the run's family shows of each point's readings live (:attr:`bench.families.Family.summary`, as
+    the engine's ``point`` event carries it: spots, currents …), by point id: no family-specific code here."""
+    from .families import family
+
+    run = catalogue.run(run_id)
+    summary = family(run.get("family") or "cmos").summary
+    readings = defaultdict(list)
+    for reading in catalogue.readings(run_id):
+        readings[reading.point_id].append(reading)
+    return {point_id: summary(rows) for point_id, rows in readings.items()}
 
 
 def rejected_readings(document: dict) -> dict[int, str]:

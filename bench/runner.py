@@ -16,12 +16,17 @@ from calibration.data import BenchData
 from calibration.design import DEFAULT_SENSOR
 from calibration.evaluation import StageFrames, calibrate
 from calibration.stage_geometry import GeometryPrior
+
 from .campaign import Campaign
 from .catalogue import LIVE_RUN_STATUSES
 from .datafile import calibration_document
-from .engine import EDGE_FLAGS, Interlocks, RunEngine
-from .plans import alignment_violations, make_plan, procedure_auto_exposure
-from .preflight import PreflightReport, TimingModel, preflight, timing_from_table
+from .descriptor import ReadingRecord
+from .engine import RunEngine
+from .families import family_of_sensor, table_mount
+from .families.cmos import EDGE_FLAGS
+from .interlocks import SIMULATED_TIMING
+from .plans import alignment_violations
+from .preflight import PreflightReport, TimingModel, preflight_campaign, timing_from_table
 
 
 class ResumeRefused(Exception):
@@ -65,17 +70,25 @@ def open_session(bench_file, catalogue, *, time_scale: float | None = None, ask=
     from .hardware import connect_bench
 
     devices = connect_bench(bench_file, time_scale=time_scale, **({"ask": ask} if ask else {}))
-    interlocks = bench_file.interlocks
     sim = devices.sim
-    enclosure = (lambda: sim.world.enclosure_open) if sim is not None else None
-    clock = sim.world.clock.now if sim is not None else None
-    engine = RunEngine(devices, catalogue, geometry=bench_file.bench_geometry(),
-                       interlocks=Interlocks(sensor_max_temperature_c=interlocks.sensor_max_temperature_c,
-                                             lamp_fault=interlocks.lamp_fault, enclosure_open=enclosure,
-                                             poll_s=0.05 if sim is not None else 0.5,
-                                             hold_off_s=0.0 if sim is not None else 1.0),
+    interlocks = (bench_file.interlocks.interlocks(enclosure_open=sim.enclosure_open, **SIMULATED_TIMING)
+                  if sim is not None else bench_file.interlocks.interlocks())
+    clock = sim.clock.now if sim is not None else None
+    engine = RunEngine(devices, catalogue, geometry=bench_file.bench_geometry(), interlocks=interlocks,
+                       family=family_of_sensor(bench_file.devices.sensor.kind),
+                       axis_order=sim.axis_order if sim is not None else table_axis_order(bench_file),
                        **({"clock": clock} if clock else {}))
     return Session(bench_file, devices, catalogue, engine)
+
+
+def table_axis_order(bench_file) -> str:
+    """The kinematics of a real table: an LX200 is an alt-az fork, the two-stage tables are seed 003's."""
+    return "zenith-on-azimuth" if bench_file.devices.table.kind == "lx200" else "azimuth-on-zenith"
+
+
+def session_mount(session: Session):
+    """The table's kinematics, for plans set in the sensor's own angles (:func:`bench.families.table_mount`)."""
+    return table_mount(session.engine.axis_order, session.engine.geometry)
 
 
 def timing_model(session: Session) -> TimingModel:
@@ -85,16 +98,20 @@ def timing_model(session: Session) -> TimingModel:
     axis = sim.config.zenith_axis  # a simulated bench estimates what the same bench would take in real time
     return timing_from_table(session.devices.table, TimingModel(
         rate_deg_s=axis.max_rate_deg_s, accel_deg_s2=axis.accel_deg_s2, settle_s=axis.settle_s,
-        warmup_s=sim.world.lamp.spec.warm_time_s))
+        warmup_s=sim.lamp_warm_time_s))
 
 
 def check_campaign(campaign: Campaign, session: Session) -> PreflightReport:
     """Expand the campaign's plan, check every move and the alignment, count the points, estimate the time."""
     geometry = session.bench_file.bench_geometry()
     timing = timing_model(session)
-    report = preflight(make_plan(campaign, timing=timing), check=session.devices.table.check, timing=timing,
-                       dry_peak_dn=procedure_auto_exposure(campaign).target_peak_fraction * 1023.0,
-                       extra_violations=alignment_violations(campaign.alignment, geometry))
+    family = session.engine.family
+    wrong = [] if campaign.plan in family.plans else [
+        f"the {campaign.plan} plan is not one of the {family.name} sensor's on this bench "
+        f"(its plans: {', '.join(family.plans)})"]
+    report = preflight_campaign(campaign, check=session.devices.table.check, timing=timing,
+                                mount=session_mount(session),
+                                extra_violations=wrong + alignment_violations(campaign.alignment, geometry))
     return dataclasses.replace(report, duration_s=report.duration_s * len(campaign.sensors))
 
 
@@ -102,14 +119,14 @@ def check_campaign(campaign: Campaign, session: Session) -> PreflightReport:
 EDGE_REASON = "spot clipped at the detector's edge"
 
 
-def has_spot(reading: dict) -> bool:
+def has_spot(reading: ReadingRecord) -> bool:
     """A reading of the catalogue whose centroid was found."""
-    return reading["status"] == "ok" and reading["x_px"] is not None
+    return reading.ok and reading.value("x_px") is not None
 
 
-def clipped(reading: dict) -> bool:
+def clipped(reading: ReadingRecord) -> bool:
     """A reading whose spot touches the frame's edge (:data:`EDGE_FLAGS`): recorded, never fitted."""
-    return bool((reading["flags"] or 0) & EDGE_FLAGS)
+    return bool(int(reading.value("flags", 0)) & EDGE_FLAGS)
 
 
 def bench_data(catalogue, run_ids, *, sensor_id: str | None = None) -> BenchData:
@@ -122,10 +139,11 @@ def bench_data(catalogue, run_ids, *, sensor_id: str | None = None) -> BenchData
     if not rows:
         from calibration.errors import InsufficientDataError
         raise InsufficientDataError(f"runs {list(run_ids)} recorded no usable frame")
-    column = lambda name: np.array([r[name] for r in rows], dtype=float)  # noqa: E731
-    return BenchData(column("zenith_deg"), column("azimuth_body_deg"), column("x_px"), column("y_px"),
-                     repeat=np.array([r["repeat"] for r in rows]), sensor_id=sensor_id,
-                     exposure_ms=column("exposure_ms"), frame_id=np.array([r["id"] for r in rows]))
+    pose = lambda name: np.array([getattr(r, name) for r in rows], dtype=float)  # noqa: E731
+    spot = lambda name: np.array([r.value(name) for r in rows], dtype=float)  # noqa: E731
+    return BenchData(pose("zenith_deg"), pose("azimuth_body_deg"), spot("x_px"), spot("y_px"),
+                     repeat=np.array([r.repeat for r in rows]), sensor_id=sensor_id,
+                     exposure_ms=pose("exposure_ms"), frame_id=np.array([r.id for r in rows]))
 
 
 def fit_run(catalogue, run_id: int, methods, design=None, geometry: GeometryPrior | None = None) -> list:
@@ -142,9 +160,9 @@ def fit_run(catalogue, run_id: int, methods, design=None, geometry: GeometryPrio
     data = bench_data(catalogue, lineage, sensor_id=run["sensor_id"])
     stage = None
     if geometry is not None:
-        rows = {r["id"]: r for r in catalogue.readings(lineage)}
-        stage = StageFrames(np.array([rows[i]["azimuth_deg"] for i in data.frame_id], dtype=float),
-                            np.array([rows[i]["zenith_stage_deg"] for i in data.frame_id], dtype=float), geometry)
+        rows = {r.id: r for r in catalogue.readings(lineage)}
+        stage = StageFrames(np.array([rows[i].azimuth_deg for i in data.frame_id], dtype=float),
+                            np.array([rows[i].zenith_stage_deg for i in data.frame_id], dtype=float), geometry)
     outcome = calibrate(data, methods=list(methods), design=design, stage=stage)
     chosen = outcome.chosen
     for report in outcome.reports:
@@ -256,6 +274,7 @@ def _run_sensor(session: Session, campaign: Campaign, campaign_id: int | None, s
     run_id = catalogue.create_run(campaign_id=campaign_id, sensor_id=sensor_id, plan_name=campaign.plan,
                                   plan_args=campaign.model_dump(mode="json"), parent_run_id=parent,
                                   provenance=_provenance(session, campaign, sensor_id, identity),
+                                  descriptor=session.engine.family.descriptor,
                                   n_points_planned=n_points)
     if campaign_id is not None:
         catalogue.set_queue_status(campaign_id, sensor_id, "running", run_id)
@@ -342,10 +361,12 @@ def _execute(session: Session, campaign: Campaign, run_id: int, n_points: int, *
     lineage = list(lineage) or [run_id]
     done = catalogue.completed_keys(lineage)
     session.engine.frames = campaign.frames
-    design, geometry = fit_inputs(session)
-    return session.engine.execute(make_plan(campaign, timing=timing_model(session)), run_id=run_id, done_keys=done, lineage=lineage,
-                                  n_points=n_points,
-                                  on_completed=lambda: fit_run(catalogue, run_id, campaign.methods, design, geometry))
+    family = session.engine.family
+    inputs = family.fit_inputs(session)
+    plan = family.make_plan(campaign, timing=timing_model(session), mount=session_mount(session))
+    return session.engine.execute(plan, run_id=run_id,
+                                  done_keys=done, lineage=lineage, n_points=n_points,
+                                  on_completed=lambda: family.fit_run(catalogue, run_id, campaign, inputs))
 
 
 def fit_inputs(session: Session):
@@ -356,13 +377,11 @@ def fit_inputs(session: Session):
     """
     sim = session.devices.sim
     given = getattr(session.bench_file.devices.sensor, "design", None)  # the bench file's word wins
-    design = given.sensor_design() if given is not None else (sim.world.sensor.design if sim is not None
+    design = given.sensor_design() if given is not None else (sim.sensor_design if sim is not None
                                                                else DEFAULT_SENSOR)
-    if sim is not None and sim.world.axis_order != "azimuth-on-zenith":
+    if sim is not None and sim.axis_order != "azimuth-on-zenith":
         return design, None
-    g = session.bench_file.geometry
-    return design, GeometryPrior(lever_arm_mm=g.lever_arm_mm or None, lever_arm_sd_mm=g.lever_arm_sd_mm,
-                                 source_distance_mm=g.source_distance_mm, source_distance_sd_mm=g.source_distance_sd_mm)
+    return design, GeometryPrior.from_bench(session.bench_file.bench_geometry())
 
 
 def check_resumable(catalogue, run_id: int) -> dict:

@@ -32,8 +32,18 @@ from calibration.centroid import CentroidError, find_spot
 
 from .campaign import Campaign
 from .engine import EngineState, IllegalTransition
-from .runner import (MountRequest, PreflightRefused, ResumeRefused, check_campaign, check_resumable, continue_campaign,
-                     open_session, resume_and_continue)
+from .events import BenchEvent
+from .families.cmos import FULL_SCALE_DN
+from .runner import (
+    MountRequest,
+    PreflightRefused,
+    ResumeRefused,
+    check_campaign,
+    check_resumable,
+    continue_campaign,
+    open_session,
+    resume_and_continue,
+)
 
 
 class BenchBusy(IllegalTransition):
@@ -171,8 +181,10 @@ class EventBus:
             self._groups = groups
         subscription.close()
 
-    def publish(self, event: dict) -> None:
-        """Deliver `event` to every subscriber; never waits for one."""
+    def publish(self, event: BenchEvent) -> None:
+        """Deliver `event` to every subscriber, as the stream sends it (:meth:`BenchEvent.to_dict`); never waits
+        for one."""
+        event = event.to_dict()
         with self._lock:
             queues, groups = self._queues, self._groups
         for q in queues:
@@ -259,7 +271,7 @@ class BenchService:
         self.interrupted_campaigns = catalogue.mark_interrupted_campaigns()
 
     # -- life ------------------------------------------------------------------------------------------
-    def start(self) -> "BenchService":
+    def start(self) -> BenchService:
         for thread in self._threads:
             thread.start()
         return self
@@ -282,7 +294,7 @@ class BenchService:
         """Whether the bench is simulated, and its time scale (bench seconds per wall-clock second; 0: every wait
         is skipped) when it is: a dashboard must never let a simulated bench pass for the real one."""
         sim = self.session.devices.sim
-        return {"simulated": sim is not None, "time_scale": float(sim.world.clock.time_scale) if sim else None}
+        return {"simulated": sim is not None, "time_scale": float(sim.time_scale) if sim else None}
 
     def wall_time_s(self, bench_time_s: float) -> float | None:
         """How long `bench_time_s` of bench time takes on the wall clock: the same on a real bench, divided by
@@ -310,8 +322,8 @@ class BenchService:
         campaign_id = self.catalogue.create_campaign(campaign.name, campaign.plan, campaign.model_dump(mode="json"))
         self.catalogue.enqueue_sensors(campaign_id, list(campaign.sensors))
         self._put(("campaign", campaign_id))
-        self.bus.publish({"kind": "queued", "campaign_id": campaign_id, "points": len(report.points),
-                          "upper_bound": report.upper_bound is not None})
+        self.bus.publish(BenchEvent("queued", None, {"campaign_id": campaign_id, "points": len(report.points),
+                          "upper_bound": report.upper_bound is not None}))
         return campaign_id
 
     def resume_run(self, run_id: int) -> None:
@@ -321,7 +333,7 @@ class BenchService:
         run = check_resumable(self.catalogue, run_id)
         self._refuse_pending(run["campaign_id"], f"the campaign of run {run_id}", ("resume", run_id))
         self._put(("resume", run_id))
-        self.bus.publish({"kind": "resume-queued", "run_id": run_id, "campaign_id": run["campaign_id"]})
+        self.bus.publish(BenchEvent("resume-queued", run_id, {"campaign_id": run["campaign_id"]}))
 
     def resume_campaign(self, campaign_id: int) -> None:
         """Queue the rest of a campaign that stopped (aborted, failed, or left when the server stopped): its
@@ -335,7 +347,7 @@ class BenchService:
             if entry["status"] == "failed":  # tried again, from its run (the operator fixed the cause)
                 self.catalogue.set_queue_status(campaign_id, entry["sensor_id"], "queued")
         self._put(("campaign", campaign_id))
-        self.bus.publish({"kind": "resume-queued", "campaign_id": campaign_id})
+        self.bus.publish(BenchEvent("resume-queued", None, {"campaign_id": campaign_id}))
 
     def _refuse_pending(self, campaign_id: int | None, what: str, job: tuple[str, int]) -> None:
         with self._mount_lock:
@@ -368,12 +380,12 @@ class BenchService:
                                             on_run=self._on_run)
                 except Exception as exc:  # noqa: BLE001 - the service outlives a failed campaign
                     self.catalogue.log_event(None, "error", f"campaign {campaign_id}: {exc}")
-                    self.bus.publish({"kind": "error", "campaign_id": campaign_id, "message": str(exc)})
+                    self.bus.publish(BenchEvent("error", None, {"campaign_id": campaign_id, "message": str(exc)}))
                 finally:
                     with self._mount_lock:
                         self._pending.discard(job)
-            self.bus.publish({"kind": "campaign-finished", "campaign_id": campaign_id,
-                              **self._campaign_outcome(campaign_id)})
+            self.bus.publish(BenchEvent("campaign-finished", None, {"campaign_id": campaign_id,
+                              **self._campaign_outcome(campaign_id)}))
 
     def _campaign_outcome(self, campaign_id: int | None) -> dict:
         """How the campaign stands now, and why when it did not complete (its last run's exit reason)."""
@@ -395,7 +407,7 @@ class BenchService:
             self._mount, self._mount_answer = prompt, None
         self._status["mount"] = prompt
         self.catalogue.log_event(request.resumes_run, "mount", f"waiting for the operator: {request.prompt()}")
-        self.bus.publish({"kind": "mount", **prompt})
+        self.bus.publish(BenchEvent("mount", None, prompt))
         self._bench_lock.release()
         try:
             with self._mount_lock:
@@ -406,7 +418,7 @@ class BenchService:
         finally:
             self._bench_lock.acquire()
             self._status["mount"] = None
-        self.bus.publish({"kind": "mount-answered", "sensor_id": request.sensor_id, "confirmed": answer})
+        self.bus.publish(BenchEvent("mount-answered", None, {"sensor_id": request.sensor_id, "confirmed": answer}))
         return answer
 
     def confirm_mount(self, sensor_id: str) -> None:
@@ -432,15 +444,14 @@ class BenchService:
 
     def _on_run(self, run_id: int, sensor_id: str) -> None:
         self._progress = {"run_id": run_id, "sensor_id": sensor_id, "index": 0, "total": None, "eta_s": None}
-        self.bus.publish({"kind": "run-started", "run_id": run_id, "sensor_id": sensor_id})
+        self.bus.publish(BenchEvent("run-started", run_id, {"sensor_id": sensor_id}))
 
     # what the engine's readings may change in the cached status, by event kind
     _READINGS = {"table": ("azimuth_deg", "zenith_deg", "moving"),
                  "source": ("lamp_on", "warm", "shutter_open", "fault", "output", "output_unit"),
-                 "sensor": ("temperature_c", "exposure_ms")}
+                 "sensor": ("temperature_c", "exposure_ms", "currents_a")}
 
     def _on_engine_event(self, event) -> None:
-        data = {"kind": event.kind, "run_id": event.run_id, **event.data}
         fields = self._READINGS.get(event.kind)
         if fields is not None:  # the engine moved, switched or read something: the cache follows it
             merged = {**(self._status.get(event.kind) or {}), **{k: event.data[k] for k in fields if k in event.data}}
@@ -452,7 +463,8 @@ class BenchService:
             now = time.monotonic()
             if now - self._status_published >= self.status_period_s:
                 self._status_published = now
-                self.bus.publish({"kind": "status", **{k: self._status.get(k) for k in ("table", "source", "sensor")}})
+                self.bus.publish(BenchEvent("status", None,
+                                            {k: self._status.get(k) for k in ("table", "source", "sensor")}))
             return
         if event.kind == "point":
             self._progress.update(index=event.data["index"], total=event.data["total"], eta_s=event.data["eta_s"])
@@ -461,7 +473,7 @@ class BenchService:
         elif event.kind == "finished":
             self._progress = {**self._progress, "ended_unsafe": event.data.get("unsafe")}
         self._status["engine"] = {"state": self.engine.state.value, **self._progress}
-        self.bus.publish(data)
+        self.bus.publish(event)
 
     # -- pause, resume, abort (the engine refuses illegal transitions) ---------------------------------
     def pause(self) -> None:
@@ -533,7 +545,7 @@ class BenchService:
         if cached is not None and cached[0] is frame:
             return frame, cached[1]
         try:
-            found = find_spot(frame, saturation_dn=self.session.engine.full_scale_dn)
+            found = find_spot(frame, saturation_dn=FULL_SCALE_DN)
             spot = {"x_px": found.x_px, "y_px": found.y_px, "peak_dn": found.peak_dn}
         except CentroidError as exc:
             spot = {"error": type(exc).__name__}
@@ -549,13 +561,14 @@ class BenchService:
             d = self.session.devices
             azimuth, zenith = d.table.position()
             source = d.source.status()
-            sensor = {"temperature_c": d.sensor.temperature_c(), "exposure_ms": d.sensor.exposure_ms()}
-            if source.shutter_open or self._frame_size is None:  # one dark frame tells the detector's size
-                frame = d.sensor.capture()
+            family = self.session.engine.family
+            sensor = {"family": family.name, **family.status(d.sensor)}
+            if family.has_exposure and (source.shutter_open or self._frame_size is None):
+                frame = d.sensor.capture()  # one dark frame tells the detector's size
                 self._frame_size = {"width_px": int(frame.shape[1]), "height_px": int(frame.shape[0])}
                 if source.shutter_open:
                     self._frame = frame
-            sensor.update(self._frame_size)
+            sensor.update(self._frame_size or {})
             table = {"azimuth_deg": azimuth, "zenith_deg": zenith, "moving": d.table.is_moving()}
         except Exception as exc:  # noqa: BLE001 - a device error shows in the status, it does not end the service
             self._status["error"] = str(exc)
@@ -564,7 +577,7 @@ class BenchService:
             self._bench_lock.release()
         self._status.update(table=table, source=asdict(source), sensor=sensor, error=None,
                             engine={"state": self.engine.state.value, **self._progress}, updated_utc=_utc_now())
-        self.bus.publish({"kind": "status", **{k: self._status[k] for k in ("table", "source", "sensor")}})
+        self.bus.publish(BenchEvent("status", None, {k: self._status[k] for k in ("table", "source", "sensor")}))
 
     def _poller(self) -> None:
         while not self._stop.wait(self.status_period_s):

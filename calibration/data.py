@@ -80,7 +80,7 @@ class BenchData:
     def __len__(self) -> int:
         return int(self.zenith_deg.size)
 
-    def subset(self, mask) -> "BenchData":
+    def subset(self, mask) -> BenchData:
         """The points selected by a boolean mask or an index array."""
         pick = lambda a: None if a is None else a[mask]  # noqa: E731
         return BenchData(self.zenith_deg[mask], self.azimuth_deg[mask], self.x_px[mask], self.y_px[mask],
@@ -98,7 +98,7 @@ class BenchData:
         rank[np.argsort(first)] = np.arange(first.size)
         return rank[inverse.reshape(-1)]
 
-    def direction_means(self, tolerance_deg: float = 1e-3) -> "BenchData":
+    def direction_means(self, tolerance_deg: float = 1e-3) -> BenchData:
         """One point per bench direction: the mean spot of its repeats.
 
         Seed 003 §4.3 averages the frames taken at each direction (4 in the reported run) before fitting

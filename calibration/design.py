@@ -80,11 +80,25 @@ class BenchGeometry:
         §4.1 ([ambiguous]); the default follows eq. 8. Always pass the value measured on your bench.
     source_diameter_deg : float
         Angular diameter of the simulated sun seen from the sensor [°] (0.5°).
+    lever_arm_sd_mm, source_distance_sd_mm : float or None
+        1σ of the two lengths as measured on the bench [mm]; None when not stated. Eq. 8 does not use them:
+        the joint fit of sensor and bench weighs the lengths by them
+        (:meth:`calibration.stage_geometry.GeometryPrior.from_bench`).
+
+    Notes
+    -----
+    This is the one geometry value of a bench: the run engine turns stage angles into body directions with
+    it (:func:`calibration.stage_geometry.body_direction_deg`), the fits take their prior from it, and the
+    bench file's ``geometry:`` section and the simulation's truth each build one. The fitted stage-angle
+    model has its own parameters (:class:`calibration.stage_geometry.StageGeometry`: the ratio
+    d / (L + d) and the stages' zero offsets), which no bench states.
     """
 
     lever_arm_mm: float = 136.2
     source_distance_mm: float = 710.0
     source_diameter_deg: float = 0.5
+    lever_arm_sd_mm: float | None = None
+    source_distance_sd_mm: float | None = None
 
     def __post_init__(self) -> None:
         if not self.lever_arm_mm >= 0:
@@ -93,6 +107,10 @@ class BenchGeometry:
             raise ValueError(f"`source_distance_mm` must be positive, got {self.source_distance_mm}")
         if not 0 < self.source_diameter_deg < 10:
             raise ValueError(f"`source_diameter_deg` must lie in (0, 10), got {self.source_diameter_deg}")
+        for name in ("lever_arm_sd_mm", "source_distance_sd_mm"):
+            value = getattr(self, name)
+            if value is not None and not value > 0:
+                raise ValueError(f"`{name}` must be positive (or None), got {value}")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -100,3 +118,7 @@ class BenchGeometry:
 
 DEFAULT_SENSOR = SensorDesign()
 DEFAULT_BENCH = BenchGeometry()
+
+#: Full scale of seed 003's detector [DN]: the largest value of its 10-bit ADC (``DEFAULT_SENSOR.saturation_dn``,
+#: 1023). Auto-exposure aims at a fraction of it and the centroid flags a spot that reaches it.
+FULL_SCALE_DN = float(DEFAULT_SENSOR.saturation_dn)

@@ -513,10 +513,13 @@ def _quality_warnings(chosen: MethodReport, reports: list[MethodReport], repeats
                    "calibration does not describe these data to their noise. Likely causes: " + "; ".join(causes))
     n_frames = int(repeats.n_frames.sum()) + len(repeats.rejected)
     if rejected and len(rejected) > REJECTED_WARNING * max(n_frames, 1):
-        out.append(f"{len(rejected)} of {n_frames} frames were rejected as outliers ({100 * len(rejected) / n_frames:.1f} %): "
+        out.append(f"{len(rejected)} of {n_frames} frames were rejected as outliers "
+                   f"({100 * len(rejected) / n_frames:.1f} %): "
                    "look for glints, reflections or stray light on the bench")
-    if chosen.heldout and chosen.fitted and chosen.heldout.rms_vector_deg > 3 * max(chosen.fitted.rms_vector_deg, 1e-4) \
-            and chosen.heldout.rms_vector_deg > 0.02:
+    if (chosen.heldout and chosen.fitted
+            and chosen.heldout.rms_vector_deg > 3 * max(chosen.fitted.rms_vector_deg, 1e-4)
+            and chosen.heldout.rms_vector_deg > 0.02):
         out.append(f"{chosen.method} does {chosen.heldout.rms_vector_deg / chosen.fitted.rms_vector_deg:.0f}× worse "
-                   f"between the measured directions ({chosen.heldout.rms_vector_deg:.3f}°) than at them: add directions")
+                   f"between the measured directions ({chosen.heldout.rms_vector_deg:.3f}°) "
+                   "than at them: add directions")
     return out

@@ -28,7 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .design import BenchGeometry
 from .errors import CalibrationError
+from .geometry import incidence_from_stage_angle
 from .pinhole import detector_rotation
 
 #: Geometry parameters the joint fit can estimate, in the order of the parameter vector.
@@ -74,6 +76,54 @@ def arm_ratio(lever_arm_mm: float, source_distance_mm: float) -> float:
     seed 003, eq. 8 (its only length ratio).
     """
     return float(lever_arm_mm) / (float(source_distance_mm) + float(lever_arm_mm))
+
+
+def body_direction_deg(stage_azimuth_deg, stage_zenith_deg, geometry: BenchGeometry) -> tuple[np.ndarray, np.ndarray]:
+    """Sun direction in the body frame that a bench of known geometry sets with its stage angles.
+
+    .. math::
+
+        θ' = 180° − \\arccos\\frac{d − (L + d)\\cos Ω}{\\sqrt{(L + d)^2 + d^2 − 2 (L + d) d \\cos Ω}},
+        \\qquad θ = |θ'|, \\qquad φ = φ_s + 180° \\;(Ω < 0), \\; φ_s \\;(Ω ≥ 0)
+
+    Parameters
+    ----------
+    stage_azimuth_deg : numeric
+        Azimuth stage reading φ_s [°].
+    stage_zenith_deg : numeric
+        Zenith stage reading Ω [°]; negative tilts the sensor the other way.
+    geometry : BenchGeometry
+        Lever arm d and source distance L the bench believes [mm].
+
+    Returns
+    -------
+    zenith_deg : ndarray
+        Zenith θ of the source from the boresight [°], in [0, 180].
+    azimuth_deg : ndarray
+        Azimuth φ of the source in the body frame [°], in [0, 360).
+
+    Notes
+    -----
+    Seed 003's azimuth-on-zenith bench with its stages at their zeros and the source in the zenith stage's
+    plane (Ω₀ = η = 0 in the module docstring): θ' is eq. 8's incidence angle with the sign of Ω
+    (:func:`calibration.geometry.incidence_from_stage_angle`). A negative stage angle tilts the sensor away
+    from the azimuth stage's zero, so the source is seen at |θ'| on the opposite azimuth. The result equals
+    the direction of :func:`body_vectors_from_stage` with ``StageGeometry(arm_ratio(d, L))``. The inputs
+    broadcast against each other; a NaN stage angle gives a NaN direction. The thesis's L (710 mm at eq. 8,
+    710 cm in §4.1) is [ambiguous]: always pass the bench's.
+
+    References
+    ----------
+    seed 003, eq. 8 and Fig. 4.5 (offset zenith axis), eq. 12 (body frame).
+
+    See Also
+    --------
+    body_vectors_from_stage : the same with the stages' zero offsets and the fixture's tilt, as fitted.
+    """
+    theta = incidence_from_stage_angle(stage_zenith_deg, geometry.lever_arm_mm, geometry.source_distance_mm)  # eq. 8
+    theta, azimuth = np.broadcast_arrays(theta, np.asarray(stage_azimuth_deg, dtype=float))
+    azimuth = np.where(np.isnan(theta), np.nan, azimuth + np.where(theta < 0, 180.0, 0.0))
+    return np.abs(theta), np.mod(azimuth, 360.0)
 
 
 def _rot_z(deg):
@@ -131,6 +181,23 @@ class GeometryPrior:
     source_distance_sd_mm: float | None = None
     mount_tilt_x_deg: float = 0.0
     mount_tilt_y_deg: float = 0.0
+
+    @classmethod
+    def from_bench(cls, geometry: BenchGeometry, *, mount_tilt_x_deg: float = 0.0,
+                   mount_tilt_y_deg: float = 0.0) -> GeometryPrior:
+        """What a bench's stated geometry tells the fit: its two lengths with their 1σ.
+
+        A zero lever arm (the sensor on the zenith axis) is no prior on the lever arm: the fit works with the
+        lengths' logarithms (:func:`split_arm_ratio`).
+
+        References
+        ----------
+        seed 003, eq. 8 (d and L, of which only d / (L + d) enters).
+        """
+        return cls(lever_arm_mm=geometry.lever_arm_mm or None, lever_arm_sd_mm=geometry.lever_arm_sd_mm,
+                   source_distance_mm=geometry.source_distance_mm,
+                   source_distance_sd_mm=geometry.source_distance_sd_mm,
+                   mount_tilt_x_deg=mount_tilt_x_deg, mount_tilt_y_deg=mount_tilt_y_deg)
 
     def __post_init__(self) -> None:
         for name in ("lever_arm", "source_distance"):

@@ -10,6 +10,15 @@ import numpy as np
 from .data import BenchData
 from .design import DEFAULT_SENSOR, SensorDesign
 from .pinhole import PinholeBuild, spot_from_direction
+from .procedure import (
+    SEED003_AZIMUTH_STEP_DEG,
+    SEED003_CENTRE_REPEATS,
+    SEED003_REPEATS,
+    SEED003_ZENITH_MAX_DEG,
+    SEED003_ZENITH_STEP_DEG,
+    grid_azimuths_deg,
+    grid_zeniths_deg,
+)
 
 #: A sensor with realistic build errors: pinhole off-centre, 1.05 mm air gap over 0.5 mm of cover glass,
 #: detector tilted ~0.3° and rotated 1.4° in-plane (the magnitudes of seed 003 §4.4–4.5 and the research
@@ -18,8 +27,9 @@ EXAMPLE_BUILD = PinholeBuild(x0_px=325.8, y0_px=233.4, gap_mm=1.05, glass_mm=0.5
                              tilt_x_deg=0.22, tilt_y_deg=-0.21, rotation_deg=1.4)
 
 
-def seed003_grid(*, azimuth_step_deg: float = 45.0, zenith_max_deg: float = 60.0,
-                 zenith_step_deg: float = 10.0, repeats: int = 4, centre_repeats: int = 5):
+def seed003_grid(*, azimuth_step_deg: float = SEED003_AZIMUTH_STEP_DEG, zenith_max_deg: float = SEED003_ZENITH_MAX_DEG,
+                 zenith_step_deg: float = SEED003_ZENITH_STEP_DEG, repeats: int = SEED003_REPEATS,
+                 centre_repeats: int = SEED003_CENTRE_REPEATS):
     """Bench directions of the seed 003 procedure, in measurement order.
 
     Stage 1 (centre): every azimuth at normal incidence, `centre_repeats` frames each. Stage 2 (grid): zenith
@@ -37,8 +47,8 @@ def seed003_grid(*, azimuth_step_deg: float = 45.0, zenith_max_deg: float = 60.0
     ----------
     seed 003, §4.2 (8 azimuths × 5 frames; 8 azimuths × 0–60° in 10° steps × 4 frames).
     """
-    azimuths = np.arange(0.0, 360.0 - 1e-9, azimuth_step_deg)
-    zeniths = np.arange(0.0, zenith_max_deg + 1e-9, zenith_step_deg)
+    azimuths = grid_azimuths_deg(azimuth_step_deg)  # the grid of calibration.procedure
+    zeniths = grid_zeniths_deg(zenith_max_deg, zenith_step_deg)
     rows = [(0.0, a, k) for a in azimuths for k in range(centre_repeats)]
     rows += [(z, a, k) for z in zeniths for a in azimuths for k in range(repeats)]
     z, a, k = (np.array(c) for c in zip(*rows))

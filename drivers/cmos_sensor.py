@@ -114,7 +114,8 @@ class CmosSunSensor(ImageSensor):
             self.port.write(wire.encode_frame(command, self._sequence, payload))
             frame = self._read_reply(self._sequence, timeout_s)
             if frame.code == wire.ERROR:
-                code_, message = (frame.payload[0], frame.payload[1:].decode("ascii", "replace")) if frame.payload else (0, "")
+                code_, message = ((frame.payload[0], frame.payload[1:].decode("ascii", "replace")) if frame.payload
+                                  else (0, ""))
                 if code_ == 3:  # the module got our command with a bad CRC: the link, not the module
                     raise ChecksumError(self.name, f"module error 3 (bad CRC): our command reached it corrupted "
                                                    f"({message})")
@@ -177,7 +178,8 @@ class CmosSunSensor(ImageSensor):
 
     # -- the interface ----------------------------------------------------------------------------------
     def identify(self) -> SensorIdentity:
-        model, serial, firmware, width, height, bits = self._unpack(wire.IDENTITY, self._exchange(wire.IDENTIFY), "IDENTIFY")
+        model, serial, firmware, width, height, bits = self._unpack(wire.IDENTITY, self._exchange(wire.IDENTIFY),
+                                                                    "IDENTIFY")
         self._identity = SensorIdentity(wire.unpad(model), wire.unpad(serial), wire.unpad(firmware))
         self._shape = (height, width)
         self.bit_depth = bits
@@ -188,7 +190,9 @@ class CmosSunSensor(ImageSensor):
         low, high = self.exposure_range_ms
         if not low <= exposure_ms <= high:
             raise LimitError(self.name, f"exposure {exposure_ms} ms is outside [{low}, {high}] ms")
-        (us,) = self._unpack(wire.EXPOSURE, self._exchange(wire.SET_EXPOSURE, wire.EXPOSURE.pack(round(exposure_ms * 1000))), "SET_EXPOSURE")
+        (us,) = self._unpack(wire.EXPOSURE,
+                             self._exchange(wire.SET_EXPOSURE, wire.EXPOSURE.pack(round(exposure_ms * 1000))),
+                             "SET_EXPOSURE")
         return us / 1000.0
 
     def exposure_ms(self) -> float:
@@ -219,8 +223,8 @@ class CmosSunSensor(ImageSensor):
     def onboard_centroid(self) -> OnboardCentroid:
         x, y, peak, n, status, exposure_us = self._unpack(wire.CENTROID_REPLY, self._exchange(
             wire.CENTROID, timeout_s=self.frame_timeout_s), "CENTROID")
-        return OnboardCentroid(float(x), float(y), int(peak), int(n), wire.CENTROID_STATUS.get(status, f"status {status}"),
-                               exposure_us / 1000.0)
+        return OnboardCentroid(float(x), float(y), int(peak), int(n),
+                               wire.CENTROID_STATUS.get(status, f"status {status}"), exposure_us / 1000.0)
 
     def temperature_c(self) -> float:
         (centi,) = self._unpack(wire.TEMPERATURE_REPLY, self._exchange(wire.TEMPERATURE), "TEMPERATURE")

@@ -1,8 +1,8 @@
 """The small interfaces the bench talks to: a rotary table, a sun simulator, a sun sensor.
 
 Every concrete driver (Meade LX200, Thorlabs APT, Newport SMC100, manual axis; Oriel 69907, SCPI LED supply;
-CMOS pinhole module, USB camera) implements one of these, so the run engine never knows which hardware —
-or which simulator — it drives.
+CMOS pinhole module, USB camera; quadrant-photodiode module) implements one of these, so the run engine never
+knows which hardware — or which simulator — it drives.
 """
 
 from __future__ import annotations
@@ -295,3 +295,98 @@ class ImageSensor(ABC):
 
     @abstractmethod
     def temperature_c(self) -> float: ...
+
+
+@dataclass(frozen=True)
+class QuadrantReading:
+    """One READ of a quadrant-photodiode sun sensor (seed 002): four photocurrents and the die temperature.
+
+    Per-quadrant fields are in the order Q1, Q2, Q3, Q4 of seed 002's eq. 2.1: Q1 at (−x, −y), Q2 at (+x, +y),
+    Q3 at (+x, −y), Q4 at (−x, +y) in the detector frame.
+
+    Attributes
+    ----------
+    counts : tuple of 4 float
+        Mean raw ADC reading of each quadrant over the samples [counts].
+    currents_a : tuple of 4 float
+        The same as currents, pedestal removed [A]: photocurrent plus dark current (dark not removed).
+    saturated : tuple of 4 bool
+        A sample of the quadrant was at the ADC's full scale: its current is a lower bound.
+    under_range : tuple of 4 bool
+        A sample of the quadrant was at 0 counts.
+    temperature_c : float
+        Die temperature from the module's thermometer, mean over the read [°C].
+    n_samples : int
+        Samples averaged.
+    sample_counter : int
+        Samples the module has taken since power-up, this read's included.
+    """
+
+    counts: tuple[float, float, float, float]
+    currents_a: tuple[float, float, float, float]
+    saturated: tuple[bool, bool, bool, bool]
+    under_range: tuple[bool, bool, bool, bool]
+    temperature_c: float
+    n_samples: int
+    sample_counter: int
+
+    @property
+    def any_saturated(self) -> bool:
+        return any(self.saturated)
+
+    @property
+    def total_a(self) -> float:
+        """Sum of the four currents [A]."""
+        return float(sum(self.currents_a))
+
+
+@dataclass(frozen=True)
+class TecStatus:
+    """State of a sensor module's thermo-electric cooler.
+
+    Attributes
+    ----------
+    enabled : bool
+        The TEC regulates; when off the die drifts to ambient.
+    setpoint_c : float or None
+        Regulation setpoint [°C]; None when the TEC is off.
+    temperature_c : float
+        Die temperature now [°C].
+    settled : bool
+        The die is within the module's tolerance of the setpoint (or of ambient, TEC off).
+    """
+
+    enabled: bool
+    setpoint_c: float | None
+    temperature_c: float
+    settled: bool
+
+
+class QuadrantSensor(ABC):
+    """A sun sensor that delivers four photocurrents (the quadrant-photodiode module of seed 002)."""
+
+    name: str
+    #: True when :meth:`identify`'s serial is the sensor's own (the run checks it is the sensor it expects)
+    reports_serial: bool = False
+
+    @abstractmethod
+    def identify(self) -> SensorIdentity: ...
+
+    @abstractmethod
+    def read(self, average: int = 1) -> QuadrantReading:
+        """One reading, the mean of `average` samples."""
+
+    @abstractmethod
+    def set_temperature_setpoint_c(self, setpoint_c: float | None) -> TecStatus:
+        """Regulate the die at `setpoint_c` [°C]; None switches the TEC off."""
+
+    @abstractmethod
+    def temperature_status(self) -> TecStatus: ...
+
+    def temperature_setpoint_c(self) -> float | None:
+        """The TEC setpoint [°C]; None when the TEC is off."""
+        return self.temperature_status().setpoint_c
+
+    def temperature_c(self) -> float:
+        """Die temperature [°C]."""
+        return self.temperature_status().temperature_c

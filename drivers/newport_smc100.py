@@ -195,7 +195,7 @@ class Smc100Axis(RotaryAxis):
         self.retries = retries
 
     @classmethod
-    def open(cls, url: str, *, timeout_s: float = 1.0, record=None, **kwargs) -> "Smc100Axis":
+    def open(cls, url: str, *, timeout_s: float = 1.0, record=None, **kwargs) -> Smc100Axis:
         """Open the port at `url` with the SMC100 line settings (57600 baud, 8N1, XON/XOFF)."""
         port = open_port(url, baudrate=57600, xonxoff=True, timeout_s=timeout_s, record=record,
                          name=kwargs.get("name"))

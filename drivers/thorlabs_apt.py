@@ -718,7 +718,7 @@ class AptRotationStage(RotaryAxis):
 
     @classmethod
     def open(cls, url: str, *, timeout_s: float = 1.0, dwell_s: float = 0.05, record=None,
-             **kwargs) -> "AptRotationStage":
+             **kwargs) -> AptRotationStage:
         """Open the port at `url` (115200 baud, RTS/CTS), initialise the link and enable the channel.
 
         Parameters

@@ -33,7 +33,7 @@ def register_sim_scheme() -> None:
 
 
 def open_port(url: str, *, baudrate: int = 9600, timeout_s: float = 1.0, record=None, name: str | None = None,
-              **settings) -> "Port":
+              **settings) -> Port:
     """Open a port by URL and wrap it in a :class:`Port`.
 
     Parameters
@@ -166,7 +166,8 @@ class Port:
             raise DeviceTimeout(self.name, why, received=bytes(data))
         return bytes(data)
 
-    def query(self, command: bytes, terminator: bytes, *, max_bytes: int = 4096, timeout_s: float | None = None) -> bytes:
+    def query(self, command: bytes, terminator: bytes, *, max_bytes: int = 4096,
+              timeout_s: float | None = None) -> bytes:
         """Discard stale input, send `command`, return the reply up to and including `terminator`."""
         with self.transaction():
             self.discard_input()

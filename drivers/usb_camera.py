@@ -30,7 +30,8 @@ class UsbCamera(ImageSensor):
         OpenCV capture API (``cv2.CAP_ANY`` lets OpenCV choose; ``cv2.CAP_IMAGES`` for image sequences).
     """
 
-    def __init__(self, source, *, exposure_ms: float | None = None, backend: int = cv2.CAP_ANY, name: str | None = None):
+    def __init__(self, source, *, exposure_ms: float | None = None, backend: int = cv2.CAP_ANY,
+                 name: str | None = None):
         self.source = source
         self.name = name or f"camera:{source}"
         self._capture = cv2.VideoCapture(source, backend)

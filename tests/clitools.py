@@ -9,7 +9,7 @@ from pathlib import Path
 
 from typer.testing import CliRunner
 
-from bench.cli import app
+from cli.main import app  # the composed `sunbench` app (pyproject's console script)
 
 ALL_METHODS = ("seed003", "seed003-tilt", "seed003-sector", "physical", "physical-mask")
 # no colour codes, wide enough that nothing wraps

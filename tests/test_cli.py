@@ -4,21 +4,19 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from clitools import ALL_METHODS, assert_user_error_text, flat, invoke, method_rows
 
 from bench.datafile import read_calibration, write_bench_csv
 from calibration.geometry import angular_error_deg
 from calibration.models import METHODS
 from calibration.synthetic import synthetic_bench_data
-
-from clitools import ALL_METHODS, assert_user_error_text, flat, invoke, method_rows
-
-
 
 
 def assert_user_error(result, *fragments: str) -> str:
@@ -218,7 +216,8 @@ def test_non_numeric_cell(tmp_path, bench_csv):
     lines = bench_csv.read_text().splitlines()
     lines[5] = lines[5].replace(lines[5].split(",")[3], "12,5x", 1).replace("12,5x", "12;5x")
     path = _csv(tmp_path, "\n".join(lines) + "\n")
-    assert_user_error(invoke("fit", "cmos", path), str(path), "row 5 (line 6)", "column 'y_px'", "'12;5x' is not a number")
+    assert_user_error(invoke("fit", "cmos", path), str(path), "row 5 (line 6)", "column 'y_px'",
+                      "'12;5x' is not a number")
 
 
 def test_nan_cell(tmp_path):
@@ -302,6 +301,33 @@ def test_console_script(tmp_path, fitted):
     assert str(bad) in flat and "row 2 (line 3)" in flat and "'abc' is not a number" in flat
 
 
+COMMANDS = ("apply", "header", "demo", "sim", "run", "runs", "show", "resume", "export", "fleet", "serve", "fit")
+
+
+def _listed_commands(help_text: str) -> list[str]:
+    """The command names of a `--help` page's Commands panel, in its order."""
+    panel = help_text.split("Commands", 1)[1]
+    return [m.group(1) for m in (re.match(r"^\W*([a-z]+)\s{2,}\S", line) for line in panel.splitlines()) if m]
+
+
+def test_every_command_is_on_the_app():
+    """cli/main.py composes bench's commands and web's `serve` into one app, in this order."""
+    result = invoke("--help")
+    assert result.exit_code == 0, result.output
+    assert _listed_commands(result.stdout) == list(COMMANDS)
+    assert invoke().exit_code == 2  # no command: the help, as a usage error
+
+
+def test_python_m_cli(tmp_path):
+    """`python -m cli` is the console script."""
+    env = {"PATH": str(Path(sys.executable).parent), "COLUMNS": "160", "NO_COLOR": "1", "TERM": "dumb"}
+    proc = subprocess.run([sys.executable, "-m", "cli", "--help"], capture_output=True, text=True, timeout=60,
+                          env=env, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "Usage: sunbench" in proc.stdout
+    assert _listed_commands(proc.stdout) == list(COMMANDS)
+
+
 def test_fit_glass_index_options(workdir, bench_csv):
     out = workdir / "cal-index.json"
     result = invoke("fit", "cmos", bench_csv, "--fit-index", "--glass-index", "1.6", "-o", out)
@@ -327,7 +353,8 @@ def _traced_csv(path, *, header_comments="", stage=False, glint_rows=(), optics=
     for row in glint_rows:  # data rows are 1-based
         x[row - 1] += 9.0
     columns = "stage_zenith_deg,stage_azimuth_deg" if stage else "zenith_deg,azimuth_deg"
-    lines = [f"{columns},x_px,y_px,repeat"] + [f"{a},{b},{c:.6f},{d:.6f},{k}" for a, b, c, d, k in zip(zen, az, x, y, rep)]
+    lines = [f"{columns},x_px,y_px,repeat"] + [f"{a},{b},{c:.6f},{d:.6f},{k}"
+                                               for a, b, c, d, k in zip(zen, az, x, y, rep)]
     path.write_text(header_comments + "\n".join(lines) + "\n")
     return path
 
@@ -390,6 +417,7 @@ def test_sim_serves_the_chosen_table_and_says_how_clients_connect(tmp_path):
     import time
 
     from clitools import ENV, SUNBENCH
+
     from drivers.interfaces import AxisMotion
     from drivers.newport_smc100 import Smc100Axis
 

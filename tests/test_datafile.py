@@ -7,8 +7,15 @@ import json
 import numpy as np
 import pytest
 
-from bench.datafile import (DataFileError, calibration_document, read_bench_csv, read_calibration,
-                            read_spots_csv, write_bench_csv, write_calibration)
+from bench.datafile import (
+    DataFileError,
+    calibration_document,
+    read_bench_csv,
+    read_calibration,
+    read_spots_csv,
+    write_bench_csv,
+    write_calibration,
+)
 from calibration.data import BenchData
 from calibration.design import BenchGeometry
 from calibration.geometry import incidence_from_stage_angle

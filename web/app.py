@@ -25,7 +25,7 @@ from drivers.errors import LimitError
 
 from .guard import Guard
 from .idempotency import IdempotencyKeys
-from .routes import campaigns, commands, docs, downloads, events, fits, pages, run, runs, status
+from .routes import campaigns, commands, docs, downloads, events, fits, pages, qd, run, runs, status
 from .server import Shutdown
 from .settings import WebSettings
 
@@ -127,7 +127,7 @@ def create_app(service, *, settings: WebSettings) -> FastAPI:
     app.state.shutdown = shutdown
     app.state.idempotency = IdempotencyKeys()
     _install_error_handlers(app)
-    for module in (status, commands, campaigns, run, runs, fits, downloads, events, docs):
+    for module in (status, commands, campaigns, run, runs, fits, qd, downloads, events, docs):
         app.include_router(module.router)
     pages.install(app)  # the dashboard: /, /launch, /run, /results, /fleet and /static
     return app

@@ -5,9 +5,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, computed_field
 
 from bench.campaign import Campaign
+
+from .family import results_view
 
 CampaignCreate = Campaign  # the campaign file's own model: the API accepts exactly what a YAML file may say
 
@@ -45,6 +47,9 @@ class SensorStatusPublic(_Out):
     exposure_ms: float | None = None
     width_px: int | None = Field(None, description="Width of the sensor's frames [px]")
     height_px: int | None = Field(None, description="Height of the sensor's frames [px]")
+    family: str | None = Field(None, description="The sensor's family (cmos, qd …)")
+    currents_a: list[float] | None = Field(None, description="Of a photodiode sensor (qd): its latest current per "
+                                                             "quadrant, dark current included [A]")
 
 
 class MountPublic(_Out):
@@ -61,6 +66,10 @@ class BenchPublic(_Out):
     simulated: bool = Field(description="The devices are simulated: nothing real moves, lights or measures")
     time_scale: float | None = Field(None, description="Of a simulated bench: bench seconds per wall-clock second "
                                                        "(100: a bench hour takes 36 s; 0: every wait is skipped)")
+    family: str | None = Field(None, description="The sensor family on the bench (cmos, qd …): what its runs measure")
+    family_title: str | None = Field(None, description="The family in words")
+    plans: list[str] | None = Field(None, description="The campaign plans this bench runs (its family's)")
+    has_frames: bool | None = Field(None, description="Its sensor takes image frames (GET /api/frame.png)")
 
 
 class StatusPublic(_Out):
@@ -184,6 +193,12 @@ class RunPublic(_Out):
     n_points_recorded: int
     plan_args: dict[str, Any]
     provenance: dict[str, Any]
+    family: str = Field("cmos", description="The sensor family the run measured (cmos, qd …)")
+
+    @computed_field(description="The dashboard's results view of the run, chosen by its family")
+    @property
+    def results_view(self) -> str:
+        return results_view(self.family)
 
 
 class RunsPublic(_Out):
@@ -215,6 +230,9 @@ class PointPublic(_Out):
     excluded: str | None = Field(None, description="Why every fit leaves the point out (each of its spots clipped "
                                                    "at the detector's edge); null when it is fitted")
     frames_left_out: list[LeftOutFramePublic] = Field([], description="The point's frames no fit uses, and why")
+    summary: dict[str, Any] | None = Field(None, description="What the run's family shows of the point's readings "
+                                                             "live, as its `point` event carries it: `spots` (cmos), "
+                                                             "`currents_a` and `temperature_c` (qd) …")
 
 
 class PointsPublic(_Out):
@@ -243,6 +261,14 @@ class RejectedFramePublic(_Out):
     reason: str
 
 
+class RejectedReadingPublic(_Out):
+    """A reading a photodiode family's fit (qd) rejected: its direction in the sensor's projection angles."""
+    row: int | None = Field(None, description="The reading's id")
+    alpha_deg: float | None = Field(None, description="Its direction's α (null for a dark reading) [°]")
+    beta_deg: float | None = Field(None, description="Its direction's β [°]")
+    reason: str
+
+
 class UncertaintyMapPublic(_Out):
     zenith_deg: list[float] = Field(description="Zenith of each row of the grid [°]")
     azimuth_deg: list[float] = Field(description="Azimuth of each column of the grid [°]")
@@ -267,8 +293,8 @@ class CalibrationPublic(_Out):
     metrics: dict[str, Any]
     quality: QualityPublic | None = Field(None, description="The fit's quality in words and figures, from the "
                                                             "calibration document (absent from older ones)")
-    rejected: list[RejectedFramePublic] | None = Field(None, description="Frames left out of the fit, and why "
-                                                                         "(absent from older documents)")
+    rejected: list[RejectedFramePublic | RejectedReadingPublic] | None = Field(
+        None, description="Frames (cmos) or readings (qd) left out of the fit, and why (absent from older documents)")
     uncertainty_map: UncertaintyMapPublic | None = Field(None, description="Methods with a parameter covariance "
                                                                            "(physical) only")
     parameters: dict[str, Any] | None = Field(None, description="The fitted parameters as the document holds them "

@@ -31,7 +31,7 @@ class Calibration(ABC):
 
     @classmethod
     @abstractmethod
-    def fit(cls, data: BenchData, design: SensorDesign = DEFAULT_SENSOR) -> "Calibration":
+    def fit(cls, data: BenchData, design: SensorDesign = DEFAULT_SENSOR) -> Calibration:
         """Fit the model to bench data; raises :class:`~calibration.errors.InsufficientDataError`."""
 
     @abstractmethod
@@ -48,7 +48,7 @@ class Calibration(ABC):
                 "parameters": self.parameters()}
 
     @classmethod
-    def from_parameters(cls, parameters: dict) -> "Calibration":
+    def from_parameters(cls, parameters: dict) -> Calibration:
         names = {f.name for f in dataclasses.fields(cls)}
         required = {f.name for f in dataclasses.fields(cls)
                     if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING}

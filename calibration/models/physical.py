@@ -34,7 +34,11 @@ from ..errors import CalibrationError, FitError
 from ..geometry import direction_vector, wrap_deg, zenith_azimuth_from_vector
 from ..pinhole import PinholeBuild, direction_from_spot, spot_from_vectors
 from ..repeats import RAYLEIGH_MEDIAN
-from ..stage_geometry import GEOMETRY_PARAMETERS, GeometryPrior, StageGeometry, StageGeometryError, body_vectors_from_stage
+from ..stage_geometry import (
+    StageGeometry,
+    StageGeometryError,
+    body_vectors_from_stage,
+)
 from .base import Calibration
 
 #: Parameters fitted, in the order of the parameter vector (``glass_index`` only when asked).
@@ -132,7 +136,7 @@ class PhysicalCalibration(Calibration):
 
     @classmethod
     def fit(cls, data: BenchData, design: SensorDesign = DEFAULT_SENSOR, *, glass_index: float = 1.52,
-            fit_index: bool = False, noise_px=None) -> "PhysicalCalibration":
+            fit_index: bool = False, noise_px=None) -> PhysicalCalibration:
         """Fit the build of the sensor to bench data (robustly; see :func:`fit_physical`).
 
         Parameters
@@ -223,7 +227,8 @@ def fit_physical(data: BenchData, design: SensorDesign = DEFAULT_SENSOR, *, glas
     model : type
         :class:`PhysicalCalibration` or :class:`PhysicalMaskCalibration`.
     stage : (stage_azimuth_deg, stage_zenith_deg), optional
-        Stage angles of the points; the directions then come from :func:`~calibration.stage_geometry.body_vectors_from_stage`.
+        Stage angles of the points; the directions then come from
+        :func:`~calibration.stage_geometry.body_vectors_from_stage`.
     geometry : StageGeometry, optional
         The start (and, for what is not in `fit_geometry`, the value) of the bench geometry.
     fit_geometry : tuple of str
@@ -333,7 +338,8 @@ def fit_physical(data: BenchData, design: SensorDesign = DEFAULT_SENSOR, *, glas
                         correlation=tuple(tuple(float(c) for c in row) for row in corr),
                         fitted=names,
                         residual_rms_px=float(np.sqrt(np.mean(dist[keep] ** 2) / 2.0)))
-    vectors = direction_vector(data.zenith_deg, data.azimuth_deg) if geo is None else body_vectors_from_stage(*stage, geo)
+    vectors = (direction_vector(data.zenith_deg, data.azimuth_deg) if geo is None
+               else body_vectors_from_stage(*stage, geo))
     return PhysicalFit(calibration, ~keep, dist, noise, chi2 / dof if given_noise else None, geo,
                        {n: float(v) for n, v in zip(names[n_build:], std[n_build:])}, vectors,
                        np.column_stack(spots(result.x)))

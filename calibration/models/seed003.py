@@ -173,7 +173,7 @@ class Seed003Calibration(Calibration):
 
     @classmethod
     def fit(cls, data: BenchData, design: SensorDesign = DEFAULT_SENSOR, *,
-            min_zeniths: int = ZENITH_ORDER + 1) -> "Seed003Calibration":
+            min_zeniths: int = ZENITH_ORDER + 1) -> Seed003Calibration:
         x0, y0, r, _, b1, b0, scale = cls._fit_common(data, min_zeniths)
         coef, _ = fit_zenith_polynomial(r, data.zenith_deg, radius_scale_px=scale)
         return cls(x0, y0, tuple(coef), scale, b1, b0)
@@ -210,7 +210,7 @@ class Seed003TiltCalibration(Seed003Calibration):
 
     @classmethod
     def fit(cls, data: BenchData, design: SensorDesign = DEFAULT_SENSOR, *,
-            min_zeniths: int = ZENITH_ORDER + 1) -> "Seed003TiltCalibration":
+            min_zeniths: int = ZENITH_ORDER + 1) -> Seed003TiltCalibration:
         x0, y0, r, meas, b1, b0, scale = cls._fit_common(data, min_zeniths)
         azimuth = np.radians(np.mod(b1 * meas + b0, 360.0))
         coef, (c, s) = fit_zenith_polynomial(r, data.zenith_deg, radius_scale_px=scale,
@@ -255,7 +255,7 @@ class Seed003SectorCalibration(Seed003Calibration):
 
     @classmethod
     def fit(cls, data: BenchData, design: SensorDesign = DEFAULT_SENSOR, *,
-            min_zeniths: int = ZENITH_ORDER + 1) -> "Seed003SectorCalibration":
+            min_zeniths: int = ZENITH_ORDER + 1) -> Seed003SectorCalibration:
         x0, y0, r, _, b1, b0, scale = cls._fit_common(data, min_zeniths)
         pooled, _ = fit_zenith_polynomial(r, data.zenith_deg, radius_scale_px=scale)
         sectors, reach = [], []

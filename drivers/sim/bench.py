@@ -9,16 +9,20 @@ in-process (``sim://`` URLs) or over TCP (``socket://`` URLs, ``sunbench sim``).
 from __future__ import annotations
 
 import itertools
+from functools import cached_property
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from calibration.design import DEFAULT_SENSOR, BenchGeometry, SensorDesign
+from calibration.design import DEFAULT_BENCH, DEFAULT_SENSOR, BenchGeometry, SensorDesign
 
 from . import registry
+from .backdoor import BenchFaults
 from .clock import SimClock
 from .lamp import LED, XENON
 from .motion import AxisSpec
+from .qd_optics import QdTruth, qd_fleet_truth
+from .qd_sensor import QdSensorConfig
 from .raytrace import SensorOptics
 from .world import SensorTruth, SimWorld, fleet_sensor
 
@@ -45,12 +49,24 @@ class AxisConfig(_Strict):
 
 
 class GeometryConfig(_Strict):
-    """Bench geometry. The source sits 710 cm away (seed 003 §4.1, where a 0.5° source is ~62 mm across);
-    with eq. 8's 710 mm a 60° stage angle would put the sun at 68.6°, outside the sensor's field of view."""
+    """The true bench geometry (:class:`calibration.design.BenchGeometry`, built by :meth:`bench_geometry`).
 
-    lever_arm_mm: float = Field(136.2, ge=0)
+    The source sits 710 cm away (seed 003 §4.1, where a 0.5° source is ~62 mm across) rather than the
+    design default's 710 mm: with eq. 8's 710 mm a 60° stage angle would put the sun at 68.6°, outside the
+    sensor's field of view."""
+
+    lever_arm_mm: float = Field(DEFAULT_BENCH.lever_arm_mm, ge=0)
     source_distance_mm: float = Field(7100.0, gt=0)
-    source_diameter_deg: float = Field(0.5, gt=0, lt=10)
+    source_diameter_deg: float = Field(DEFAULT_BENCH.source_diameter_deg, gt=0, lt=10)
+
+    @model_validator(mode="after")
+    def _physical(self):
+        self.bench_geometry()  # the value type's own checks, at load time
+        return self
+
+    def bench_geometry(self) -> BenchGeometry:
+        """The simulated world's geometry."""
+        return BenchGeometry(**self.model_dump())
 
 
 class BuildConfig(_Strict):
@@ -129,11 +145,13 @@ class SimBenchConfig(_Strict):
 
     time_scale: float = Field(1.0, ge=0)
     seed: int = 0
+    family: Literal["cmos", "qd"] = "cmos"  # the sensor under test: CMOS pinhole (seed 003) or QD (seed 002)
     table: Literal["apt", "lx200", "smc100"] = "apt"
     axis_order: Literal["azimuth-on-zenith", "zenith-on-azimuth"] = "azimuth-on-zenith"
     source: Literal["xenon", "led"] = "xenon"
     geometry: GeometryConfig = GeometryConfig()
     sensor: SensorConfig = SensorConfig()
+    qd: QdSensorConfig = QdSensorConfig()  # the QD module, used when `family` is qd
     mount: MountConfig = MountConfig()
     azimuth_axis: AxisConfig = AxisConfig()
     zenith_axis: AxisConfig = AxisConfig(hard_limits_deg=(-95.0, 95.0))  # the defaults are examples/bench-sim.yaml
@@ -159,17 +177,62 @@ class SimBench:
         self.config = config = config or SimBenchConfig()
         clock = SimClock(config.time_scale if time_scale is None else time_scale)
         truth = config.sensor.truth()
-        self.world = SimWorld(clock=clock, bench=BenchGeometry(**config.geometry.model_dump()), sensor=truth,
+        self.world = SimWorld(clock=clock, bench=config.geometry.bench_geometry(), sensor=truth,
                               mount_tilt_x_deg=config.mount.tilt_x_deg, mount_tilt_y_deg=config.mount.tilt_y_deg,
                               lamp_spec=XENON if config.source == "xenon" else LED, seed=config.seed,
                               temperature_c=config.temperature_c, axis_order=config.axis_order)
         self.devices = {**self._table(), **self._source(), **self._sensor()}
         self._registered: list[str] = []
 
-    def mount_sensor(self, serial: str) -> SensorTruth:
+    # -- what the bench layer may ask of a simulated bench (never its world's internals) --------------------
+    @property
+    def clock(self) -> SimClock:
+        """The simulated clock every model of this bench runs on (``clock.now()`` [s])."""
+        return self.world.clock
+
+    @property
+    def time_scale(self) -> float:
+        """Simulated seconds per wall second; 0 is instant."""
+        return self.world.clock.time_scale
+
+    def enclosure_open(self) -> bool:
+        """The enclosure's door switch: True while the door is open (:attr:`faults` opens it)."""
+        return self.world.enclosure_open
+
+    @property
+    def lamp_warm_time_s(self) -> float:
+        """The simulated lamp's own warm-up time, in simulated time [s]."""
+        return self.world.lamp.spec.warm_time_s
+
+    @property
+    def sensor_design(self) -> SensorDesign:
+        """The design of the sensor on the bench (detector size, pitch, bit depth)."""
+        return self.world.sensor.design
+
+    @property
+    def axis_order(self) -> str:
+        """Which stage carries which: "azimuth-on-zenith" (seed 003) or "zenith-on-azimuth" (alt-az mount)."""
+        return self.world.axis_order
+
+    @cached_property
+    def faults(self) -> BenchFaults:
+        """The back door: faults no wire protocol can cause, and named set-ups
+        (:class:`drivers.sim.backdoor.BenchFaults`)."""
+        return BenchFaults(self.world, normal_temperature_c=self.config.temperature_c)
+
+    def setup(self, name: str) -> None:
+        """Put the bench in a named set-up (:data:`drivers.sim.backdoor.SETUPS`: ``normal``, ``lamp_fault`` …)."""
+        self.faults.setup(name)
+
+    def mount_sensor(self, serial: str) -> SensorTruth | QdTruth:
         """Put the sensor of serial `serial` on the bench (what the operator does between the sensors of a
         fleet): the configured sensor for its own serial, any other built from its serial around it
-        (:func:`~drivers.sim.world.fleet_sensor`). The module then identifies itself with that serial."""
+        (:func:`~drivers.sim.world.fleet_sensor`; a QD module: :func:`~drivers.sim.qd_optics.qd_fleet_truth`,
+        mounted on the QD simulator, powered up fresh). The module then identifies itself with that serial."""
+        if self.config.family == "qd":
+            truth = qd_fleet_truth(self.config.qd.truth(), serial)
+            self.devices["sensor"].mount(truth)
+            return truth
         self.world.sensor = fleet_sensor(self.config.sensor.truth(), serial)
         return self.world.sensor
 
@@ -197,6 +260,9 @@ class SimBench:
         return {"led": ScpiSupplySimulator(self.world)}
 
     def _sensor(self) -> dict:
+        if self.config.family == "qd":
+            from .qd_sensor import QdSensorSimulator
+            return {"sensor": QdSensorSimulator(self.world, self.config.qd)}
         from .cmos_sensor import CmosSensorSimulator
         return {"sensor": CmosSensorSimulator(self.world)}
 

@@ -115,7 +115,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
-from datetime import date, datetime, time, timedelta, timezone
+from datetime import UTC, date, datetime, time, timedelta
 
 from ..meade import ACK, INDI_OK_CHARS, NAK, OK_CHARS, format_sexagesimal, refusal_char
 from .device import SimDevice
@@ -294,7 +294,7 @@ class LX200Simulator(SimDevice):
         self.product, self.firmware, self.bar = product, firmware, bar
         self.indi_compatible = indi_compatible
         self.latitude_deg, self.longitude_deg, self.utc_offset_h = latitude_deg, longitude_deg, utc_offset_h
-        self.set_utc(start_utc or datetime.now(timezone.utc))
+        self.set_utc(start_utc or datetime.now(UTC))
         self.park_deg = park_deg
         self.site_names = list(site_names)
         self.target_azimuth_deg: float | None = None
@@ -377,14 +377,14 @@ class LX200Simulator(SimDevice):
         """Set the simulated UTC now (timezone-aware); it then runs with the world clock."""
         if utc.tzinfo is None:
             raise ValueError("`utc` must be timezone-aware")
-        self._utc_at_zero = utc.astimezone(timezone.utc) - timedelta(seconds=self.world.clock.now())
+        self._utc_at_zero = utc.astimezone(UTC) - timedelta(seconds=self.world.clock.now())
 
     def local_time(self) -> datetime:
         """Simulated local time now (naive): UTC minus Rev L's UTC offset."""
         return (self.utc() - timedelta(hours=self.utc_offset_h)).replace(tzinfo=None)
 
     def _set_local_time(self, local: datetime) -> None:
-        self.set_utc(local.replace(tzinfo=timezone.utc) + timedelta(hours=self.utc_offset_h))
+        self.set_utc(local.replace(tzinfo=UTC) + timedelta(hours=self.utc_offset_h))
 
     def sidereal_time_deg(self) -> float:
         """Local mean sidereal time now [°]."""

@@ -60,7 +60,7 @@ class PtyBridge:
         self._thread = threading.Thread(target=self._run, name=f"pty-bridge {self.path}", daemon=True)
         self._started = False
 
-    def start(self) -> "PtyBridge":
+    def start(self) -> PtyBridge:
         if not self._started:
             self._started = True
             self._thread.start()
@@ -78,7 +78,7 @@ class PtyBridge:
                 pass
         self._master = self._slave = -1
 
-    def __enter__(self) -> "PtyBridge":
+    def __enter__(self) -> PtyBridge:
         return self.start()
 
     def __exit__(self, *exc) -> None:

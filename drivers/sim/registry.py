@@ -27,4 +27,5 @@ def lookup(name: str):
         try:
             return _devices[name]
         except KeyError:
-            raise KeyError(f"no simulator registered as sim://{name} (registered: {', '.join(sorted(_devices)) or 'none'})") from None
+            raise KeyError(f"no simulator registered as sim://{name} "
+                           f"(registered: {', '.join(sorted(_devices)) or 'none'})") from None

@@ -28,7 +28,7 @@ class _Link(socketserver.BaseRequestHandler):
                     data = sock.recv(65536)
                     if not data:
                         break
-                except socket.timeout:
+                except TimeoutError:
                     data = b""
                 except OSError:
                     break

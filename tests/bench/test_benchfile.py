@@ -5,8 +5,14 @@ from pathlib import Path
 
 import pytest
 
-from bench.benchfile import (DEFAULT_AZIMUTH_LIMITS_DEG, DEFAULT_ZENITH_LIMITS_DEG, BenchFile, BenchFileError,
-                             load_bench_file, parse_bench_file)
+from bench.benchfile import (
+    DEFAULT_AZIMUTH_LIMITS_DEG,
+    DEFAULT_ZENITH_LIMITS_DEG,
+    BenchFile,
+    BenchFileError,
+    load_bench_file,
+    parse_bench_file,
+)
 from calibration.design import DEFAULT_BENCH
 from drivers.sources import ARC_WARMUP_S
 
@@ -138,8 +144,30 @@ simulation:
     assert plain.config_hash() == spelled.config_hash() == parse_bench_file({"simulation": {"seed": 3}}).config_hash()
     assert len(plain.config_hash()) == 64 and int(plain.config_hash(), 16) >= 0
     changed = [parse_bench_file({"simulation": {"seed": 4}}),
-               parse_bench_file({"simulation": {"seed": 3}, "devices": {"table": {"zenith": {"limits_deg": [-10, 60]}}}}),
+               parse_bench_file({"simulation": {"seed": 3},
+                                 "devices": {"table": {"zenith": {"limits_deg": [-10, 60]}}}}),
                parse_bench_file({"simulation": {"seed": 3}, "geometry": {"source_distance_mm": 7000.0}}),
                parse_bench_file({"simulation": {"seed": 3}, "interlocks": {"sensor_max_temperature_c": 50}})]
     hashes = {plain.config_hash()} | {bench.config_hash() for bench in changed}
     assert len(hashes) == 1 + len(changed)
+
+
+def test_the_geometry_section_builds_the_one_bench_geometry():
+    bench = parse_bench_file({"simulation": {"geometry": {"source_diameter_deg": 0.6}},
+                              "geometry": {"lever_arm_mm": 130.0, "lever_arm_sd_mm": 0.5}})
+    geometry = bench.bench_geometry()
+    assert (geometry.lever_arm_mm, geometry.lever_arm_sd_mm) == (130.0, 0.5)
+    assert geometry.source_distance_mm == 7100.0 and geometry.source_distance_sd_mm is None  # the simulation's
+    assert geometry.source_diameter_deg == 0.6
+    assert bench.geometry.bench_geometry(0.6) == geometry
+
+
+def test_the_interlocks_section_builds_the_engines_interlocks():
+    from bench.interlocks import DEFAULT_INTERLOCKS, SIMULATED_TIMING, Interlocks
+
+    config = parse_bench_file({"interlocks": {"sensor_max_temperature_c": 45.0}}).interlocks
+    assert config.interlocks() == Interlocks(sensor_max_temperature_c=45.0)
+    door = lambda: False  # noqa: E731
+    simulated = config.interlocks(enclosure_open=door, **SIMULATED_TIMING)
+    assert simulated.enclosure_open is door and simulated.poll_s == SIMULATED_TIMING["poll_s"]
+    assert parse_bench_file(None).interlocks.interlocks() == DEFAULT_INTERLOCKS

@@ -16,7 +16,9 @@ from pathlib import Path
 import pytest
 
 import bench.catalogue as catalogue_module
-from bench.catalogue import SCHEMA_VERSION, Catalogue, CatalogueError
+from bench.catalogue import SCHEMA_VERSION, V1_CMOS_DESCRIPTOR, Catalogue, CatalogueError
+from bench.descriptor import FieldSpec, ReadingDescriptor
+from bench.families.cmos import DESCRIPTOR as CMOS
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -27,7 +29,7 @@ PROVENANCE = {"bench_config_hash": "sha256:abc", "software_version": "0.1.0",
 def make_run(cat, sensor_id="S1", campaign_id=None, parent_run_id=None, status="running"):
     run_id = cat.create_run(campaign_id=campaign_id, sensor_id=sensor_id, plan_name="grid",
                             plan_args={"repeats": 2}, provenance=PROVENANCE, parent_run_id=parent_run_id,
-                            n_points_planned=4)
+                            descriptor=CMOS, n_points_planned=4)
     if status != "created":
         cat.set_run_status(run_id, status)
     return run_id
@@ -56,16 +58,16 @@ def cat(db):
 
 
 # --- schema, versions, opening ----------------------------------------------------------------------------
-def test_new_file_has_schema_version_1_wal_and_foreign_keys(db):
+def test_new_file_has_the_current_schema_version_wal_and_foreign_keys(db):
     with Catalogue(db) as cat:
-        assert cat.schema_version == SCHEMA_VERSION == 1
+        assert cat.schema_version == SCHEMA_VERSION == 2
     raw = sqlite3.connect(db)
-    assert raw.execute("PRAGMA user_version").fetchone()[0] == 1
+    assert raw.execute("PRAGMA user_version").fetchone()[0] == 2
     assert raw.execute("PRAGMA journal_mode").fetchone()[0] == "wal"  # WAL is persistent in the file
     tables = {r[0] for r in raw.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
     assert {"campaigns", "fleet_queue", "runs", "points", "readings", "calibrations", "events", "run_values",
             "schema_history"} <= tables
-    assert raw.execute("SELECT version FROM schema_history").fetchall() == [(1,)]
+    assert raw.execute("SELECT version FROM schema_history").fetchall() == [(1,), (2,)]
     raw.close()
 
 
@@ -93,19 +95,71 @@ def test_a_file_from_a_newer_sunbench_is_refused(db):
     raw.execute("PRAGMA user_version = 7")
     raw.close()
     for readonly in (False, True):
-        with pytest.raises(CatalogueError, match=r"version 7 is newer than the version 1"):
+        with pytest.raises(CatalogueError, match=r"version 7 is newer than the version 2"):
             Catalogue(db, readonly=readonly)
 
 
 def test_an_old_file_is_upgraded_by_the_next_migration(db, monkeypatch):
     with Catalogue(db) as cat:
         run_id = make_run(cat)
-    monkeypatch.setitem(catalogue_module._MIGRATIONS, 2, ("ALTER TABLE runs ADD COLUMN bench_name TEXT",))
-    monkeypatch.setattr(catalogue_module, "SCHEMA_VERSION", 2)
+    monkeypatch.setitem(catalogue_module._MIGRATIONS, 3, ("ALTER TABLE runs ADD COLUMN bench_name TEXT",))
+    monkeypatch.setattr(catalogue_module, "SCHEMA_VERSION", 3)
     with Catalogue(db) as cat:
-        assert cat.schema_version == 2
+        assert cat.schema_version == 3
         assert "bench_name" in cat.run(run_id)  # old rows kept, new column there
-        assert [r[0] for r in cat._all("SELECT version FROM schema_history ORDER BY version")] == [1, 2]
+        assert [r[0] for r in cat._all("SELECT version FROM schema_history ORDER BY version")] == [1, 2, 3]
+
+
+def test_a_version_1_file_keeps_its_cmos_readings_as_family_values(db, monkeypatch):
+    """Schema 2 moved the spot columns of version 1 into each reading's values, under the CMOS descriptor."""
+    monkeypatch.setattr(catalogue_module, "SCHEMA_VERSION", 1)
+    with Catalogue(db) as cat:  # a file as sunbench wrote it before sensor families
+        cat._conn.execute("INSERT INTO runs (sensor_id, plan_name, plan_args_json, created_utc, provenance_json) "
+                          "VALUES ('S1', 'grid', '{}', '2026-01-01T00:00:00Z', '{}')")
+        cat._conn.execute("INSERT INTO points (run_id, key, stage, azimuth_deg, zenith_stage_deg, zenith_deg, "
+                          "azimuth_body_deg, completed_utc) VALUES (1, 'p', 'grid', 45, 10, 10.2, 44.9, 'now')")
+        cat._conn.execute("INSERT INTO readings (point_id, repeat, x_px, y_px, peak_dn, n_pixels, flags, status, t_s) "
+                          "VALUES (1, 0, 320.5, 240.25, 700, 25, 4, 'ok', 1.5), "
+                          "(1, 1, NULL, NULL, 1023, 0, 0, 'SaturatedSpotError', 2.0)")
+        cat._conn.commit()
+    monkeypatch.undo()
+    with Catalogue(db) as cat:
+        assert cat.schema_version == SCHEMA_VERSION
+        assert cat.run(1)["family"] == "cmos" and cat.descriptor(1) == CMOS
+        ok, saturated = cat.readings(1)
+        assert ok.values == {"x_px": 320.5, "y_px": 240.25, "peak_dn": 700.0, "n_pixels": 25, "flags": 4}
+        assert (saturated.status, saturated.value("x_px"), saturated.value("peak_dn")) == ("SaturatedSpotError", None,
+                                                                                          1023.0)
+
+
+def test_the_cmos_descriptor_is_the_one_version_1_stored():
+    assert CMOS.to_json() == V1_CMOS_DESCRIPTOR
+
+
+def test_any_family_readings_are_stored_and_checked_against_the_run_descriptor(cat):
+    qd = ReadingDescriptor("quad", (FieldSpec("currents_a", "number", "A", (4,)), FieldSpec("temperature_c", "number",
+                                                                                           "degC")))
+    run_id = cat.create_run(campaign_id=None, sensor_id="Q1", plan_name="qd-grid", plan_args={},
+                            provenance=PROVENANCE, descriptor=qd)
+    cat.set_run_status(run_id, "running")
+    pose = {"stage": "grid", "azimuth_deg": 0, "zenith_stage_deg": 0, "zenith_deg": 0, "azimuth_body_deg": 0,
+            "exposure_ms": None}
+    cat.record_point(run_id, "p", readings=[{"t_s": 0.0, "currents_a": [1e-6, 2e-6, 3e-6, 4e-6],
+                                             "temperature_c": 21.5}], **pose)
+    (reading,) = cat.readings(run_id)
+    assert reading.values == {"currents_a": [1e-6, 2e-6, 3e-6, 4e-6], "temperature_c": 21.5}
+    assert cat.run(run_id)["family"] == "quad" and cat.descriptor(run_id) == qd
+    with pytest.raises(CatalogueError, match="currents_a must be 4 values"):
+        cat.record_point(run_id, "q", readings=[{"t_s": 0.0, "currents_a": [1e-6], "temperature_c": 21.5}], **pose)
+    with pytest.raises(CatalogueError, match=r"unknown fields \['x_px'\]"):
+        cat.record_point(run_id, "q", readings=[{"t_s": 0.0, "x_px": 1.0}], **pose)
+    with pytest.raises(CatalogueError, match="an ok quad reading needs temperature_c"):
+        cat.record_point(run_id, "q", readings=[{"t_s": 0.0, "currents_a": [1, 2, 3, 4]}], **pose)
+    # a failed reading may lack its values
+    cat.record_point(run_id, "q", readings=[{"t_s": 0.0, "status": "SaturatedChannel"}], **pose)
+    with pytest.raises(CatalogueError, match="same family"):
+        cat.create_run(campaign_id=None, sensor_id="Q1", plan_name="grid", plan_args={}, provenance=PROVENANCE,
+                       descriptor=CMOS, parent_run_id=run_id)
 
 
 def test_files_that_are_not_catalogues_are_refused(tmp_path):
@@ -162,17 +216,22 @@ def test_record_point_is_all_or_nothing(cat):
     run_id = make_run(cat)
     record(cat, run_id, "good")
     bad = readings(3)
-    bad[2]["t_s"] = None  # the third reading violates NOT NULL after the point and two readings went in
-    with pytest.raises(CatalogueError, match=r"reading 2 .*NOT NULL.*not recorded"):
+    bad[2]["repeat"] = 1  # the third reading breaks UNIQUE (point, repeat) after the point and two readings went in
+    with pytest.raises(CatalogueError, match=r"reading 2 .*UNIQUE.*not recorded"):
         cat.record_point(run_id, "bad", stage="grid", azimuth_deg=0, zenith_stage_deg=0, zenith_deg=0,
                          azimuth_body_deg=0, exposure_ms=1, readings=bad)
     bad = readings(3)
-    bad[1].update(status="ok", x_px=float("nan"))  # an "ok" reading without a centroid breaks the CHECK
-    with pytest.raises(CatalogueError, match="CHECK"):
+    bad[2]["t_s"] = None  # a reading without its time is refused before anything is written
+    with pytest.raises(CatalogueError, match=r"reading 2: t_s .* must be a number"):
+        cat.record_point(run_id, "bad", stage="grid", azimuth_deg=0, zenith_stage_deg=0, zenith_deg=0,
+                         azimuth_body_deg=0, exposure_ms=1, readings=bad)
+    bad = readings(3)
+    bad[1].update(status="ok", x_px=float("nan"))  # an "ok" reading without a centroid breaks the descriptor
+    with pytest.raises(CatalogueError, match="an ok cmos reading needs x_px"):
         cat.record_point(run_id, "bad", stage="grid", azimuth_deg=0, zenith_stage_deg=0, zenith_deg=0,
                          azimuth_body_deg=0, exposure_ms=1, readings=bad)
     assert cat.completed_keys(run_id) == {"good"}
-    assert [r["key"] for r in cat.readings(run_id)] == ["good", "good"]
+    assert [r.key for r in cat.readings(run_id)] == ["good", "good"]
     assert cat._one("SELECT count(*) FROM readings")[0] == 2
     # the key is still free, and the catalogue still works after the rollbacks
     record(cat, run_id, "bad", n=3)
@@ -185,7 +244,7 @@ def test_a_failed_centroid_is_stored_with_its_error_name(cat):
                      azimuth_body_deg=0, exposure_ms=1,
                      readings=[{"x_px": float("nan"), "y_px": float("nan"), "status": "NoSpotError", "t_s": 3.0}])
     (reading,) = cat.readings(run_id)
-    assert (reading["status"], reading["x_px"], reading["repeat"]) == ("NoSpotError", None, 0)
+    assert (reading.status, reading.value("x_px"), reading.repeat) == ("NoSpotError", None, 0)
 
 
 def test_exposure_may_be_unknown_but_not_zero(cat):
@@ -234,8 +293,8 @@ def test_readings_are_joined_with_their_point_in_order(cat):
     cat.record_point(run_id, "a", stage="centre", azimuth_deg=0, zenith_stage_deg=0, zenith_deg=0,
                      azimuth_body_deg=0, exposure_ms=2, readings=list(reversed(readings(3))))
     rows = cat.readings([run_id])
-    assert [(r["key"], r["repeat"]) for r in rows] == [("b", 0), ("b", 1), ("a", 0), ("a", 1), ("a", 2)]
-    assert rows[0]["azimuth_deg"] == 90.0 and rows[2]["stage"] == "centre" and rows[2]["run_id"] == run_id
+    assert [(r.key, r.repeat) for r in rows] == [("b", 0), ("b", 1), ("a", 0), ("a", 1), ("a", 2)]
+    assert rows[0].azimuth_deg == 90.0 and rows[2].stage == "centre" and rows[2].run_id == run_id
 
 
 # --- runs -----------------------------------------------------------------------------------------------
@@ -266,9 +325,10 @@ def test_run_status_transitions_timestamps_and_journal(cat):
 def test_provenance_is_required(cat):
     incomplete = {k: v for k, v in PROVENANCE.items() if k != "operator"}
     with pytest.raises(CatalogueError, match="provenance lacks operator"):
-        cat.create_run(campaign_id=None, sensor_id="S1", plan_name="grid", plan_args={}, provenance=incomplete)
+        cat.create_run(campaign_id=None, sensor_id="S1", plan_name="grid", plan_args={}, provenance=incomplete,
+                       descriptor=CMOS)
     with pytest.raises(CatalogueError, match="'simulated' must be true or false"):
-        cat.create_run(campaign_id=None, sensor_id="S1", plan_name="grid", plan_args={},
+        cat.create_run(campaign_id=None, sensor_id="S1", plan_name="grid", plan_args={}, descriptor=CMOS,
                        provenance={**PROVENANCE, "simulated": "yes"})
     assert cat.runs() == []
 
@@ -371,9 +431,7 @@ def test_only_one_calibration_is_chosen_per_run(cat):
     assert [(c["id"], c["chosen"]) for c in cat.calibrations(run_id)] == [(first, False), (second, True),
                                                                          (third, False)]
     assert cat.calibrations(run_id)[1]["document"] == {"model": "sector"}
-    cat.choose_calibration(first)
-    assert [c["id"] for c in cat.calibrations(run_id) if c["chosen"]] == [first]
-    assert cat.calibrations(other)[0]["chosen"]  # another run's choice is untouched
+    assert cat.calibrations(other)[0]["chosen"]  # another run's choice is its own
     with pytest.raises(CatalogueError, match="UNIQUE"):  # the database itself holds the rule
         with cat._write("choose a second one") as conn:
             conn.execute("UPDATE calibrations SET chosen = 1 WHERE id = ?", (third,))
@@ -420,9 +478,9 @@ def test_frames_dir_layout_and_relative_frame_paths(db, tmp_path):
                          azimuth_body_deg=0, exposure_ms=1,
                          readings=[{"x_px": 1, "y_px": 2, "t_s": 0.0, "frame_path": frame},
                                    {"x_px": 1, "y_px": 2, "t_s": 0.1, "frame_path": "run-1/b.npz"}])
-        stored = [r["frame_path"] for r in cat.readings(run_id)]
+        stored = [r.frame_path for r in cat.readings(run_id)]
         assert stored == ["run-1/p1-r0.npz", "run-1/b.npz"]  # relative to <db stem>-frames/
-        assert cat.frame_file(stored[0]).read_bytes() == b"frame"
+        assert (cat.frames_root / stored[0]).read_bytes() == b"frame"
         for outside in (tmp_path / "elsewhere.npz", "../up.npz"):
             with pytest.raises(CatalogueError, match="frames folder"):
                 cat.record_point(run_id, "p2", stage="grid", azimuth_deg=0, zenith_stage_deg=0, zenith_deg=0,
@@ -467,9 +525,10 @@ def test_a_reader_thread_only_ever_sees_whole_points(db, shared):
 CRASH_SCRIPT = textwrap.dedent("""
     import os, signal, sys
     from bench.catalogue import Catalogue
+    from bench.families.cmos import DESCRIPTOR
     path, n_readings, kill_at_point = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
     cat = Catalogue(path)
-    run_id = cat.create_run(campaign_id=None, sensor_id="S1", plan_name="grid", plan_args={},
+    run_id = cat.create_run(campaign_id=None, sensor_id="S1", plan_name="grid", plan_args={}, descriptor=DESCRIPTOR,
                             provenance={"bench_config_hash": "h", "software_version": "0", "devices": {},
                                         "simulated": True, "operator": "crash test"})
     cat.set_run_status(run_id, "running")

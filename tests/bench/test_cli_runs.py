@@ -18,15 +18,13 @@ import time
 from pathlib import Path
 
 import pytest
+from clitools import ALL_METHODS, assert_user_error_text, flat, invoke, method_rows, sunbench_process
 
 import bench.cli_runs as cli_runs
 from bench.campaign import load_campaign_file
 from bench.catalogue import Catalogue, CatalogueError
-from bench.plans import make_plan
-from bench.preflight import preflight
+from bench.preflight import preflight_campaign
 from calibration.centroid import SpotFlag
-
-from clitools import ALL_METHODS, assert_user_error_text, flat, invoke, method_rows, sunbench_process
 
 ROOT = Path(__file__).resolve().parents[2]
 SEED003 = ROOT / "examples" / "seed003.yaml"
@@ -60,9 +58,9 @@ def runs_in(db: Path) -> list[dict]:
         return cat.runs()
 
 
-def good_readings(cat, lineage) -> list[dict]:
+def good_readings(cat, lineage) -> list:
     unusable = int(SpotFlag.NEAR_EDGE | SpotFlag.ROI_CLIPPED)
-    return [r for r in cat.readings(lineage) if r["status"] == "ok" and not (r["flags"] or 0) & unusable]
+    return [r for r in cat.readings(lineage) if r.ok and not int(r.value("flags", 0)) & unusable]
 
 
 @pytest.fixture(scope="module")
@@ -89,7 +87,8 @@ def test_run_prints_the_preflight_and_the_run_id_on_its_last_line(seed003_run):
     assert f"run {run_id} (SIM-0001): completed" in proc.stdout
     assert "Traceback" not in proc.stderr
     (run,) = runs_in(db)
-    assert (run["id"], run["status"], run["n_points_recorded"], run["n_points_planned"]) == (run_id, "completed", 80, 80)
+    assert ((run["id"], run["status"], run["n_points_recorded"], run["n_points_planned"])
+            == (run_id, "completed", 80, 80))
 
 
 def test_dry_run_runs_nothing(workdir):
@@ -221,7 +220,7 @@ def test_show_prints_status_provenance_and_every_method(seed003_run):
     result = invoke("show", run_id, "--catalogue", db)
     assert result.exit_code == 0, result.output
     text = flat(result.stdout)
-    assert f"run {run_id} · sensor SIM-0001 · plan seed003 · completed" in text
+    assert f"run {run_id} · sensor SIM-0001 (cmos) · plan seed003 · completed" in text
     assert "points recorded (lineage): 80 of 80" in text
     assert re.search(r"provenance: simulated bench, config [0-9a-f]{12}, sunbench \S+, operator lab", text), text
     for role in ("table:", "source:", "sensor:"):
@@ -389,7 +388,7 @@ def test_sigint_aborts_a_running_run_and_records_it(workdir):
     assert 2 <= run["n_points_recorded"] < 40
     with Catalogue(db, readonly=True) as cat:
         events = cat.events(run["id"])
-        planned = {p.key: p.repeats for p in preflight(make_plan(load_campaign_file(campaign)),
+        planned = {p.key: p.repeats for p in preflight_campaign(load_campaign_file(campaign),
                                                         check=lambda a, z: None).points}
         for p in cat.points(run["id"]):  # whole points only
             assert p["n_readings"] == planned[p["key"]], p

@@ -22,9 +22,9 @@ import pytest
 
 from bench.campaign import load_campaign_file
 from bench.catalogue import Catalogue, CatalogueError
-from bench.plans import make_plan
-from bench.preflight import preflight
+from bench.preflight import preflight_campaign
 from calibration.centroid import SpotFlag
+from calibration.models import METHODS
 
 SUNBENCH = Path(sys.executable).with_name("sunbench")
 
@@ -114,7 +114,7 @@ def test_killed_runs_resume_to_a_complete_lineage_without_duplicates(tmp_path):
     campaign_file.write_text(CAMPAIGN)
     bench_file.write_text(BENCH)
     campaign = load_campaign_file(campaign_file)
-    planned = {p.key: p.repeats for p in preflight(make_plan(campaign), check=lambda a, z: None).points}
+    planned = {p.key: p.repeats for p in preflight_campaign(campaign, check=lambda a, z: None).points}
     assert len(planned) == 40 and KILL_AT[-1] < len(planned) - 5
 
     # -- run, killed; resume, killed; resume, killed; resume to the end -----------------------------------
@@ -168,7 +168,7 @@ def test_killed_runs_resume_to_a_complete_lineage_without_duplicates(tmp_path):
         readings = cat.readings(lineage)
         repeats = collections.defaultdict(list)
         for r in readings:
-            repeats[r["key"]].append(r["repeat"])
+            repeats[r.key].append(r.repeat)
         assert {k: sorted(v) for k, v in repeats.items()} == {k: list(range(n)) for k, n in planned.items()}
         assert len(readings) == sum(planned.values())
 
@@ -176,12 +176,12 @@ def test_killed_runs_resume_to_a_complete_lineage_without_duplicates(tmp_path):
         (queue,) = cat.fleet(final_run["campaign_id"])
         assert (queue["status"], queue["run_id"]) == ("done", final)
         calibrations = cat.calibrations(final)
-        assert {c["method"] for c in calibrations} == set(campaign.methods)
+        assert {c["method"] for c in calibrations} == set(campaign.methods or METHODS)
         chosen = [c["method"] for c in calibrations if c["chosen"]]
         assert chosen == ["physical"]
 
         unusable = int(SpotFlag.NEAR_EDGE | SpotFlag.ROI_CLIPPED)
-        good = [r for r in readings if r["status"] == "ok" and not (r["flags"] or 0) & unusable]
+        good = [r for r in readings if r.ok and not int(r.value("flags", 0)) & unusable]
 
     # -- the export holds one row per good frame of the whole lineage ---------------------------------------
     export = subprocess.run([str(SUNBENCH), "export", str(final), "--format", "csv", "--catalogue", str(db)],
@@ -194,6 +194,6 @@ def test_killed_runs_resume_to_a_complete_lineage_without_duplicates(tmp_path):
         return round(float(zenith), 6), round(float(azimuth), 6), int(repeat), round(float(x), 6)
 
     assert collections.Counter(frame(r["zenith_deg"], r["azimuth_deg"], r["repeat"], r["x_px"]) for r in rows) == \
-        collections.Counter(frame(r["zenith_deg"], r["azimuth_body_deg"], r["repeat"], r["x_px"]) for r in good)
+        collections.Counter(frame(r.zenith_deg, r.azimuth_body_deg, r.repeat, r.value("x_px")) for r in good)
     assert {r["sensor_id"] for r in rows} == {"SIM-0001"}
     assert time.monotonic() - t_start < 60  # ~20 s on a laptop; a hung process fails here rather than never

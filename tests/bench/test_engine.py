@@ -70,7 +70,7 @@ def test_seed003_campaign_end_to_end_accuracy(session):
 
 
 def _dataset(catalogue, run_id):
-    return sorted((r["key"], r["repeat"], r["x_px"], r["y_px"]) for r in catalogue.readings([run_id]))
+    return sorted((r.key, r.repeat, r.value("x_px"), r.value("y_px")) for r in catalogue.readings([run_id]))
 
 
 def test_pausing_at_every_checkpoint_gives_the_same_data(tmp_path):
@@ -80,7 +80,7 @@ def test_pausing_at_every_checkpoint_gives_the_same_data(tmp_path):
         session = open_session(BenchFile(simulation=SimBenchConfig(time_scale=0.0, seed=5)), catalogue)
         engine = session.engine
         if interrupt:
-            engine.subscribe(lambda e: e.kind == "point" and engine.pause())
+            engine.subscribe(lambda e, engine=engine: e.kind == "point" and engine.pause())
         thread, result = _run_in_thread(session, SMALL)
         count = 0
         while thread.is_alive():
@@ -129,8 +129,8 @@ def test_an_interlock_suspends_and_the_run_resumes_once_cleared(session, interlo
     assert catalogue.run(run_id)["status"] == "completed"
     assert any(e["kind"] == "suspended" for e in catalogue.events(run_id))
     readings = catalogue.readings([run_id])
-    assert all(r["status"] == "ok" for r in readings)  # nothing was measured in the dark
-    assert len({r["key"] for r in readings}) == 4 + 28
+    assert all(r.ok for r in readings)  # nothing was measured in the dark
+    assert len({r.key for r in readings}) == 4 + 28
 
 
 def test_abort_and_emergency_stop_leave_the_bench_safe(session):
@@ -138,8 +138,8 @@ def test_abort_and_emergency_stop_leave_the_bench_safe(session):
     for command in ("abort", "emergency_stop"):
         engine = session.engine
         fired = threading.Event()
-        engine.subscribe(lambda e, c=command: e.kind == "point" and e.data["index"] == 3 and not fired.is_set()
-                         and (fired.set() or getattr(engine, c)()))
+        engine.subscribe(lambda e, c=command, fired=fired, engine=engine: e.kind == "point" and e.data["index"] == 3
+                         and not fired.is_set() and (fired.set() or getattr(engine, c)()))
         thread, result = _run_in_thread(session, SMALL)
         thread.join(timeout=30)
         run = session.catalogue.run(result["runs"][0])
@@ -196,7 +196,8 @@ def test_bench_data_export_is_what_fit_reads(session):
     (run_id,) = run_campaign(SMALL, session)
     data = bench_data(session.catalogue, [run_id], sensor_id="SIM-0001")
     readings = session.catalogue.readings([run_id])
-    edge = [r for r in readings if r["flags"] & (SpotFlag.NEAR_EDGE | SpotFlag.ROI_CLIPPED)]  # recorded, not fitted
+    # near the edge or clipped: recorded, not fitted
+    edge = [r for r in readings if r.value("flags", 0) & (SpotFlag.NEAR_EDGE | SpotFlag.ROI_CLIPPED)]
     assert len(readings) == 4 + 28 and len(data) == len(readings) - len(edge)
     assert set(np.round(data.zenith_deg, 3)) >= {0.0, round(float(incidence_from_stage_angle(60, 136.2, 7100.0)), 3)}
 
@@ -311,7 +312,7 @@ def test_an_emergency_stop_latches_until_it_is_acknowledged(session):
     pose = world.stage_true_deg()
     refused = {"jog": lambda: engine.jog(10.0, 10.0), "lamp on": lambda: engine.set_lamp(True),
                "shutter open": lambda: engine.set_shutter(True), "campaign": lambda: run_campaign(SMALL, session)}
-    for what, command in refused.items():
+    for _what, command in refused.items():
         with pytest.raises(EstopLatched, match="emergency stop latched"):
             command()
     assert world.stage_true_deg() == pose and not world.lamp.shutter_open  # nothing moved or opened

@@ -102,7 +102,8 @@ def test_manual_table_with_devices_given_by_url():
     try:
         with connect_bench(bench_file, time_scale=0.0, ask=ask) as devices:
             assert not devices.simulated and devices.sim is None
-            assert devices.identities["table"] == "azimuth: manual stage azimuth stage; zenith: manual stage zenith stage"
+            assert devices.identities["table"] == ("azimuth: manual stage azimuth stage; "
+                                                   "zenith: manual stage zenith stage")
             assert asked == []  # a manual table is not homed at connection
             devices.table.move_to(30.0, 15.0)
             assert asked == [("azimuth stage", 30.0), ("zenith stage", 15.0)]

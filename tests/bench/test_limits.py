@@ -6,14 +6,13 @@ import math
 from pathlib import Path
 
 import pytest
+from clitools import assert_user_error_text, invoke
 from pydantic import ValidationError
 
 from bench.campaign import MAX_POINTS_PER_SENSOR, Campaign
 from calibration.errors import CalibrationError
 from calibration.export import c_header
 from calibration.models.seed003 import Seed003Calibration
-
-from clitools import assert_user_error_text, invoke
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

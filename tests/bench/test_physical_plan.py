@@ -9,9 +9,11 @@ import pytest
 from bench.benchfile import BenchFile
 from bench.campaign import Campaign, PhysicalProcedure
 from bench.catalogue import Catalogue
-from bench.messages import Capture, CloseShutter, MayStopEarly, Measure, Point, Reading, Record, SetExposure
-from bench.plans import make_plan, physical_plan
-from bench.preflight import TimingModel, preflight, timing_from_table
+from bench.families.cmos import DESCRIPTOR as CMOS
+from bench.families.cmos import spot_reading
+from bench.messages import Capture, CloseShutter, MayStopEarly, Measure, Point, Record, SetExposure
+from bench.plans import physical_plan
+from bench.preflight import TimingModel, preflight_campaign, timing_from_table
 from bench.runner import _provenance, check_campaign, open_session, resume_run, run_campaign, timing_model
 from calibration.design import DEFAULT_SENSOR
 from calibration.geometry import incidence_from_stage_angle
@@ -61,12 +63,12 @@ def _drive(plan, noise_px, seed=0):
         if isinstance(msg, SetExposure):
             answer = msg.exposure_ms
         elif isinstance(msg, Capture):
-            answer = [Reading(0, 320.0, 240.0, 716.0, 60, 0, "ok")]
+            answer = [spot_reading(0, 320.0, 240.0, 716.0, 60, 0, "ok")]
         elif isinstance(msg, Measure):
             p = msg.point
             x, y = spot_from_direction(p.zenith_stage_deg, p.azimuth_deg, EXAMPLE_BUILD, DEFAULT_SENSOR.pixel_pitch_mm)
-            answer = [Reading(i, float(x + rng.normal(0, noise_px)), float(y + rng.normal(0, noise_px)), 700.0, 60, 0,
-                              "ok", zenith_deg=p.zenith_stage_deg, azimuth_body_deg=p.azimuth_deg)
+            answer = [spot_reading(i, float(x + rng.normal(0, noise_px)), float(y + rng.normal(0, noise_px)),
+                                   700.0, 60, 0, "ok", zenith_deg=p.zenith_stage_deg, azimuth_body_deg=p.azimuth_deg)
                       for i in range(p.repeats)]
 
 
@@ -118,13 +120,14 @@ def test_the_engine_answers_a_point_with_the_body_direction_it_records(session):
         answers.extend((yield Measure(point)))
 
     run_id = session.catalogue.create_run(campaign_id=None, sensor_id="SIM-0001", plan_name="test", plan_args={},
-                                          provenance=_provenance(session, PHYSICAL, "SIM-0001"), n_points_planned=1)
+                                          provenance=_provenance(session, PHYSICAL, "SIM-0001"), n_points_planned=1,
+                                          descriptor=CMOS)
     assert session.engine.execute(plan(), run_id=run_id) == "completed"
     geometry = session.bench_file.bench_geometry()
     zenith = float(incidence_from_stage_angle(40.0, geometry.lever_arm_mm, geometry.source_distance_mm))
     assert [(r.zenith_deg, r.azimuth_body_deg) for r in answers] == [(pytest.approx(zenith), 30.0)] * 2
     row = session.catalogue.readings([run_id])[0]
-    assert (row["zenith_deg"], row["azimuth_body_deg"]) == (pytest.approx(zenith), 30.0)
+    assert (row.zenith_deg, row.azimuth_body_deg) == (pytest.approx(zenith), 30.0)
 
 
 def test_an_interrupted_physical_run_resumes_to_the_same_decision(session):
@@ -181,8 +184,8 @@ def test_preflight_uses_each_axis_speed():
         az.check("azimuth", a)
         zen.check("zenith", z)
 
-    fast = preflight(make_plan(PHYSICAL), check=check, timing=TimingModel())
-    slow = preflight(make_plan(PHYSICAL), check=check,
+    fast = preflight_campaign(PHYSICAL, check=check, timing=TimingModel())
+    slow = preflight_campaign(PHYSICAL, check=check,
                      timing=TimingModel(azimuth_rate_deg_s=2.0, azimuth_accel_deg_s2=4.0))
     assert fast.ok and slow.ok and slow.duration_s > 2 * fast.duration_s
 

@@ -3,9 +3,10 @@
 import pytest
 
 from bench.campaign import Alignment, AutoExposure, Campaign, GridProcedure, Seed003Procedure
-from bench.messages import Capture, CloseShutter, LampOn, Measure, Move, OpenShutter, Reading, Record, SetExposure, WaitWarm
+from bench.families.cmos import spot_reading
+from bench.messages import Capture, CloseShutter, LampOn, Measure, Move, OpenShutter, Record, SetExposure, WaitWarm
 from bench.plans import PlanError, alignment_violations, auto_exposure, make_plan, seed003_plan
-from bench.preflight import TimingModel, preflight
+from bench.preflight import TimingModel, preflight_campaign
 from calibration.design import BenchGeometry
 from drivers.interfaces import Limits
 
@@ -24,9 +25,9 @@ def drive(plan, answer_for):
 
 def dry(msg, peak=716.0):
     if isinstance(msg, Measure):
-        return [Reading(i, 320.0, 240.0, peak, 60, 0, "ok") for i in range(msg.point.repeats)]
+        return [spot_reading(i, 320.0, 240.0, peak, 60, 0, "ok") for i in range(msg.point.repeats)]
     if isinstance(msg, Capture):
-        return [Reading(0, 320.0, 240.0, peak, 60, 0, "ok")]
+        return [spot_reading(0, 320.0, 240.0, peak, 60, 0, "ok")]
     if isinstance(msg, SetExposure):
         return msg.exposure_ms
     return None
@@ -62,7 +63,7 @@ def test_tilt_stage_recovers_a_known_offset():
         if isinstance(msg, Measure) and msg.point.stage == "tilt":
             offset = 0.3 * math.cos(math.radians(msg.point.azimuth_deg))
             x = 320.0 + 2.4 * (msg.point.zenith_stage_deg - offset)
-            return [Reading(i, x, 240.0, 700.0, 60, 0, "ok") for i in range(msg.point.repeats)]
+            return [spot_reading(i, x, 240.0, 700.0, 60, 0, "ok") for i in range(msg.point.repeats)]
         return dry(msg)
 
     messages, _ = drive(seed003_plan(Seed003Procedure()), answer)
@@ -86,7 +87,7 @@ def test_auto_exposure_raises_lowers_and_settles(first, expected_steps):
             return None
         status = next(replies)
         peak = 0.35 * 1023 if status == "ok" and len(exposures) == 2 else 0.7 * 1023
-        return [Reading(0, 1.0, 1.0, peak, 50, 0, status)]
+        return [spot_reading(0, 1.0, 1.0, peak, 50, 0, status)]
 
     messages, exposure = drive(auto_exposure(spec, 1023.0), answer)
     assert len(exposures) == expected_steps
@@ -99,7 +100,7 @@ def test_auto_exposure_raises_lowers_and_settles(first, expected_steps):
 
 def test_auto_exposure_gives_up_with_a_reason():
     spec = AutoExposure(start_ms=100.0, max_ms=200.0)
-    answer = lambda m: m.exposure_ms if isinstance(m, SetExposure) else [Reading(0, 0, 0, 0, 0, 0, "NoSpotError")]  # noqa: E731
+    answer = lambda m: m.exposure_ms if isinstance(m, SetExposure) else [spot_reading(0, 0, 0, 0, 0, 0, "NoSpotError")]  # noqa: E731
     with pytest.raises(PlanError, match="no exposure"):
         drive(auto_exposure(spec, 1023.0), answer)
 
@@ -111,18 +112,19 @@ def test_preflight_lists_every_violation_and_estimates_the_run():
         az.check("table azimuth", a)
         zen.check("table zenith", z)
 
-    report = preflight(make_plan(Campaign(name="c")), check=check, timing=TimingModel(rate_deg_s=10, accel_deg_s2=20))
+    report = preflight_campaign(Campaign(name="c"), check=check, timing=TimingModel(rate_deg_s=10, accel_deg_s2=20))
     assert not report.ok
     assert len(report.violations) == 16  # zenith 50° and 60° at each of 8 azimuths
     assert all("table zenith" in v for v in report.violations)
     assert len(report.points) == 80 and report.n_frames >= 40 + 48 + 224
     assert report.duration_s > 60
-    fine = preflight(make_plan(Campaign(name="c")), check=lambda a, z: None)
+    fine = preflight_campaign(Campaign(name="c"), check=lambda a, z: None)
     assert fine.ok and fine.n_moves > 70
 
 
 def test_grid_plan_orders():
-    outer = Campaign(name="g", plan="grid", grid=GridProcedure(azimuths_deg=(0, 90), zenith_stage_deg=(0, 10), order="azimuth-outer"))
+    outer = Campaign(name="g", plan="grid",
+                     grid=GridProcedure(azimuths_deg=(0, 90), zenith_stage_deg=(0, 10), order="azimuth-outer"))
     messages, _ = drive(make_plan(outer), dry)
     poses = [(m.point.azimuth_deg, m.point.zenith_stage_deg) for m in messages if isinstance(m, Measure)]
     assert poses == [(0, 0), (0, 10), (90, 0), (90, 10)]

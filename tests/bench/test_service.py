@@ -9,6 +9,7 @@ import time
 import pytest
 
 from bench.campaign import Campaign, Seed003Procedure
+from bench.events import BenchEvent
 from bench.runner import PreflightRefused
 from bench.service import BenchBusy, EventBus
 from drivers.errors import LimitError
@@ -109,7 +110,8 @@ def test_manual_commands_wait_for_the_run_and_violations_are_listed(service, tmp
         service.jog(10.0, 10.0)
     service.resume()
     _events_until(q, "campaign-finished")
-    bad = SMALL.model_copy(update={"seed003": SMALL.seed003.model_copy(update={"zenith_stage_deg": (0, 10, 20, 30, 40, 50, 80)})})
+    bad = SMALL.model_copy(update={"seed003": SMALL.seed003.model_copy(
+        update={"zenith_stage_deg": (0, 10, 20, 30, 40, 50, 80)})})
     with pytest.raises(PreflightRefused) as info:
         service.submit(bad)
     assert len(info.value.violations) == 4
@@ -121,7 +123,7 @@ def test_a_slow_subscriber_loses_old_events_and_never_blocks():
     fast = bus.subscribe()
     t0 = time.perf_counter()
     for i in range(100):
-        bus.publish({"kind": "point", "index": i})
+        bus.publish(BenchEvent("point", None, {"index": i}))
         fast.get_nowait()
     assert time.perf_counter() - t0 < 1.0
     assert [slow.get_nowait()["index"] for _ in range(3)] == [97, 98, 99]
@@ -146,10 +148,10 @@ def test_an_async_subscriber_sleeps_until_another_thread_publishes():
         subscription, latencies = bus.subscribe_async(), []
         for i in range(5):
             stamps = []
-            _publish_later(bus, {"kind": "log", "index": i}, 0.03 + 0.02 * i, stamps)  # at varied phases
+            _publish_later(bus, BenchEvent("log", None, {"index": i}), 0.03 + 0.02 * i, stamps)  # at varied phases
             batch = await subscription.next_batch(5.0)
             latencies.append(time.perf_counter() - stamps[0])
-            assert batch == [{"kind": "log", "index": i}]
+            assert batch == [BenchEvent("log", None, {"index": i}).to_dict()]
         return latencies
 
     latencies_s = asyncio.run(main())
@@ -168,7 +170,7 @@ def test_an_async_subscriber_times_out_empty_only_once_events_stop():
             for i in range(10):
                 await asyncio.sleep(0.03)  # well inside the idle period, even on a busy machine
                 last[:] = [time.perf_counter()]
-                bus.publish({"kind": "point", "index": i})
+                bus.publish(BenchEvent("point", None, {"index": i}))
         publisher = asyncio.create_task(publish())
         while batch := await subscription.next_batch(0.3):
             received.extend(e["index"] for e in batch)
@@ -196,7 +198,7 @@ def test_one_hand_off_per_loop_and_one_encoding_per_event_for_any_number_of_subs
             return call_soon_threadsafe(callback, *args)
         loop.call_soon_threadsafe = counting
         subscriptions = [bus.subscribe_async(encode) for _ in range(50)]
-        publisher = threading.Thread(target=bus.publish, args=({"kind": "point", "index": 7},))
+        publisher = threading.Thread(target=bus.publish, args=(BenchEvent("point", None, {"index": 7}),))
         publisher.start()
         publisher.join()
         batches = [await s.next_batch(1.0) for s in subscriptions]
@@ -215,7 +217,7 @@ def test_a_slow_async_subscriber_loses_its_oldest_events_and_publish_never_waits
         def publish_all():
             t0 = time.perf_counter()
             for i in range(100):
-                bus.publish({"kind": "point", "index": i})
+                bus.publish(BenchEvent("point", None, {"index": i}))
             elapsed.append(time.perf_counter() - t0)
         publisher = threading.Thread(target=publish_all)
         publisher.start()
@@ -239,7 +241,7 @@ def test_unsubscribing_ends_the_wait_and_stops_delivery():
         await asyncio.sleep(0.01)
         bus.unsubscribe_async(subscription)
         batch = await asyncio.wait_for(waiting, 1.0)
-        bus.publish({"kind": "log"})
+        bus.publish(BenchEvent("log", None))
         await asyncio.sleep(0.01)
         return batch, subscription
 
@@ -270,5 +272,5 @@ def test_publish_forgets_the_subscribers_of_a_loop_that_closed():
 
     asyncio.run(main())  # its loop closes without unsubscribing
     assert bus.subscribers == 1
-    bus.publish({"kind": "log"})  # no error for the publisher (the engine)
+    bus.publish(BenchEvent("log", None))  # no error for the publisher (the engine)
     assert bus.subscribers == 0

@@ -6,10 +6,23 @@ import numpy as np
 import pytest
 
 from calibration.design import DEFAULT_SENSOR
-from calibration.design_of_experiments import (candidate_directions, check_directions, design_experiment,
-                                               greedy_d_optimal, log_det_information, move_time_s, nominal_build,
-                                               order_tour, parameter_targets, prior_information, spot_inside,
-                                               spot_jacobian, stopping_decision, tour_time_s, trapezoid_move_s)
+from calibration.design_of_experiments import (
+    candidate_directions,
+    check_directions,
+    design_experiment,
+    greedy_d_optimal,
+    log_det_information,
+    move_time_s,
+    nominal_build,
+    order_tour,
+    parameter_targets,
+    prior_information,
+    spot_inside,
+    spot_jacobian,
+    stopping_decision,
+    tour_time_s,
+    trapezoid_move_s,
+)
 from calibration.geometry import angular_error_deg
 from calibration.models.physical import FITTED
 from calibration.pinhole import direction_from_spot, spot_from_direction

@@ -3,9 +3,18 @@
 import numpy as np
 import pytest
 
-from calibration.geometry import (angular_error_deg, azimuth_measured_deg, combined_tilt, direction_vector,
-                                  incidence_from_stage_angle, split_tilt, spot_radius_px, tilt_along_azimuth,
-                                  wrap_deg, zenith_azimuth_from_vector)
+from calibration.geometry import (
+    angular_error_deg,
+    azimuth_measured_deg,
+    combined_tilt,
+    direction_vector,
+    incidence_from_stage_angle,
+    split_tilt,
+    spot_radius_px,
+    tilt_along_azimuth,
+    wrap_deg,
+    zenith_azimuth_from_vector,
+)
 
 # seed 003 digest §2.6, [derived] from eq. 8 with d = 136.2 mm
 EQ8_TABLE = {

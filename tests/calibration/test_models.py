@@ -12,8 +12,13 @@ from calibration.evaluation import best_method, compare_methods
 from calibration.geometry import angular_error_deg, combined_tilt
 from calibration.models import METHODS, calibration_from_dict, fit_calibration
 from calibration.models.physical import FITTED, PhysicalCalibration
-from calibration.models.seed003 import (Seed003Calibration, Seed003SectorCalibration, Seed003TiltCalibration,
-                                        fit_azimuth_linear, sector_of)
+from calibration.models.seed003 import (
+    Seed003Calibration,
+    Seed003SectorCalibration,
+    Seed003TiltCalibration,
+    fit_azimuth_linear,
+    sector_of,
+)
 from calibration.pinhole import PinholeBuild, spot_from_direction
 from calibration.synthetic import seed003_grid, synthetic_bench_data
 

@@ -6,8 +6,13 @@ from scipy.optimize import least_squares
 
 from calibration.design import DEFAULT_SENSOR
 from calibration.geometry import angular_error_deg
-from calibration.pinhole import (PinholeBuild, direction_from_spot, incidence_from_radial_offset, radial_offset_mm,
-                                 spot_from_direction)
+from calibration.pinhole import (
+    PinholeBuild,
+    direction_from_spot,
+    incidence_from_radial_offset,
+    radial_offset_mm,
+    spot_from_direction,
+)
 
 PITCH = DEFAULT_SENSOR.pixel_pitch_mm
 
@@ -52,7 +57,7 @@ def test_refraction_error_of_a_plain_tan_model_matches_the_research_note():
     theta = np.linspace(0, 62, 63)
     for glass, rms, worst in [(0.1, 0.126, 0.287), (0.3, 0.408, 0.943), (0.5, 0.741, 1.734)]:
         r = radial_offset_mm(theta, 1.37 - glass, glass, 1.5) / PITCH
-        f = least_squares(lambda p: np.degrees(np.arctan(r / p[0])) - theta, [150.0]).x[0]
+        f = least_squares(lambda p: np.degrees(np.arctan(r / p[0])) - theta, [150.0]).x[0]  # noqa: B023 - called at once
         err = np.degrees(np.arctan(r / f)) - theta
         assert np.sqrt(np.mean(err**2)) == pytest.approx(rms, abs=1e-3)
         assert np.abs(err).max() == pytest.approx(worst, abs=1e-3)

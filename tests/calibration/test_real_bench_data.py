@@ -15,7 +15,7 @@ from calibration.evaluation import StageFrames, calibrate
 from calibration.geometry import angular_error_deg
 from calibration.stage_geometry import GeometryPrior
 from calibration.synthetic import seed003_grid
-from drivers.sim.raytrace import SensorOptics, body_direction_from_stage, trace_bench_frames, trace_chief_ray
+from drivers.sim.raytrace import SensorOptics, body_direction_from_stage, trace_bench_frames
 
 #: A sensor with real build errors: pinhole off centre, 1.05 mm of air over 0.5 mm of glass, die tilted and
 #: turned (the magnitudes of seed 003 §4.4–4.5).

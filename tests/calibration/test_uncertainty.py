@@ -15,9 +15,16 @@ from calibration.models import METHODS
 from calibration.models.physical import PhysicalCalibration
 from calibration.pinhole import spot_from_direction
 from calibration.synthetic import EXAMPLE_BUILD, seed003_grid, synthetic_bench_data
-from calibration.uncertainty import (build_covariance, centroid_noise_sigma_deg, error_ellipse_deg,
-                                     pointing_covariance, pointing_sigma_deg, sigma_from_covariance,
-                                     uncertainty_document, uncertainty_map)
+from calibration.uncertainty import (
+    build_covariance,
+    centroid_noise_sigma_deg,
+    error_ellipse_deg,
+    pointing_covariance,
+    pointing_sigma_deg,
+    sigma_from_covariance,
+    uncertainty_document,
+    uncertainty_map,
+)
 
 NOISE_PX = 0.02
 

@@ -8,8 +8,17 @@ import pytest
 
 from drivers.errors import DeviceFault, DeviceTimeout, LimitError, ProtocolError
 from drivers.interfaces import Limits
-from drivers.meade import (INDI_OK_CHARS, OK_CHARS, LX200Table, MountBusy, format_sexagesimal, has_seconds,
-                           parse_sexagesimal, refusal_char, wrap_azimuth_deg)
+from drivers.meade import (
+    INDI_OK_CHARS,
+    OK_CHARS,
+    LX200Table,
+    MountBusy,
+    format_sexagesimal,
+    has_seconds,
+    parse_sexagesimal,
+    refusal_char,
+    wrap_azimuth_deg,
+)
 from drivers.testing import scripted_port
 
 AZ_LIMITS, ZEN_LIMITS = Limits(0.0, 359.0), Limits(-5.0, 85.0)

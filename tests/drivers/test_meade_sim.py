@@ -4,7 +4,7 @@ code as on hardware, with the world's truth and the fault back door to check wha
 import itertools
 import random
 import time
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 from uuid import uuid4
 
 import pytest
@@ -14,8 +14,13 @@ from drivers.interfaces import Limits
 from drivers.meade import INDI_OK_CHARS, OK_CHARS, LX200Table, MountBusy, format_sexagesimal
 from drivers.sim.bench import SimBench, SimBenchConfig
 from drivers.sim.clock import SimClock
-from drivers.sim.lx200 import (SIDEREAL_RATE_DEG_S, LX200Simulator, equatorial_to_horizontal,
-                               greenwich_sidereal_time_deg, horizontal_to_equatorial)
+from drivers.sim.lx200 import (
+    SIDEREAL_RATE_DEG_S,
+    LX200Simulator,
+    equatorial_to_horizontal,
+    greenwich_sidereal_time_deg,
+    horizontal_to_equatorial,
+)
 from drivers.sim.motion import AxisSpec, trapezoid
 from drivers.sim.registry import register, unregister
 from drivers.sim.world import SimWorld
@@ -245,7 +250,7 @@ def test_many_moves_stay_deterministic(bench):
 
 
 # -- issue 11: what INDI's LX200 drivers send (sky, site, time, goto, moves, park) ----------------------------
-UTC = timezone.utc
+UTC = UTC
 J2000 = datetime(2000, 1, 1, 12, 0, 0, tzinfo=UTC)
 
 

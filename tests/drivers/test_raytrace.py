@@ -13,8 +13,16 @@ from calibration.pinhole import PinholeBuild, spot_from_direction
 from drivers.sim.bench import SimBench, SimBenchConfig
 from drivers.sim.cmos_sensor import CmosSensorSimulator
 from drivers.sim.motion import AxisSpec
-from drivers.sim.raytrace import (SensorOptics, body_direction_from_stage, refract, spot_moments, spot_patch,
-                                  sun_vector, trace_bench_frames, trace_chief_ray)
+from drivers.sim.raytrace import (
+    SensorOptics,
+    body_direction_from_stage,
+    refract,
+    spot_moments,
+    spot_patch,
+    sun_vector,
+    trace_bench_frames,
+    trace_chief_ray,
+)
 from drivers.sim.world import EXAMPLE_OPTICS, SensorTruth, SimWorld
 
 PITCH = 0.0099  # mm, the default detector's

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from calibration.centroid import find_spot
+from calibration.centroid import NoSpotError, find_spot
 from calibration.geometry import angular_error_deg
 from calibration.pinhole import direction_from_spot
 from drivers.cmos_sensor import CmosSunSensor
@@ -18,9 +18,9 @@ from drivers.newport_smc100 import Smc100Axis
 from drivers.oriel69907 import Oriel69907
 from drivers.scpi_supply import ScpiSupply
 from drivers.shutter import ThorlabsSC10
+from drivers.sim.bench import SimBench, SimBenchConfig
 from drivers.sources import ArcLampSource, LedSource
 from drivers.thorlabs_apt import AptRotationStage
-from drivers.sim.bench import SimBench, SimBenchConfig
 from drivers.transport import open_port
 
 AZ, ZEN = Limits(-180.0, 360.0), Limits(-10.0, 70.0)
@@ -32,9 +32,11 @@ def _table(kind, urls):
         table.connect()
         return table
     if kind == "apt":
-        axes = [AptRotationStage.open(urls[f"table-{a}"], dwell_s=0.0, limits=lim) for a, lim in (("azimuth", AZ), ("zenith", ZEN))]
+        axes = [AptRotationStage.open(urls[f"table-{a}"], dwell_s=0.0, limits=lim)
+                for a, lim in (("azimuth", AZ), ("zenith", ZEN))]
     else:
-        axes = [Smc100Axis.open(urls[f"table-{a}"], limits=lim, reset_wait_s=0.0) for a, lim in (("azimuth", AZ), ("zenith", ZEN))]
+        axes = [Smc100Axis.open(urls[f"table-{a}"], limits=lim, reset_wait_s=0.0)
+                for a, lim in (("azimuth", AZ), ("zenith", ZEN))]
     table = TwoAxisTable(*axes)
     table.home()
     return table
@@ -45,7 +47,8 @@ def _source(kind, urls, world):
     if kind == "xenon":
         supply = Oriel69907(open_port(urls["lamp"], timeout_s=0.5), clock=world.clock.now)
         return ArcLampSource(supply, ThorlabsSC10(open_port(urls["shutter"], timeout_s=0.5)), warmup_s=spec.warm_time_s)
-    supply = ScpiSupply(open_port(urls["led"], timeout_s=0.5), max_current_a=1.0, max_voltage_v=12.0, clock=world.clock.now)
+    supply = ScpiSupply(open_port(urls["led"], timeout_s=0.5), max_current_a=1.0, max_voltage_v=12.0,
+                        clock=world.clock.now)
     return LedSource(supply, current_a=spec.nominal_current_a, warmup_s=spec.warm_time_s)
 
 
@@ -76,7 +79,7 @@ def test_drivers_on_the_simulated_bench(table_kind, source_kind):
         assert len({(round(x), round(y)) for x, y in seen}) == 3  # and it moved with the table
         source.standby()
         assert not source.status().shutter_open and world.irradiance() == 0.0
-        with pytest.raises(Exception):
+        with pytest.raises(NoSpotError):
             find_spot(sensor.capture(), saturation_dn=1023)  # dark once the shutter is closed
     finally:
         bench.unregister()

@@ -163,7 +163,8 @@ def test_alt_az_axis_order_gives_the_gimbal_direction():
     world.azimuth.move_to(30.0)
     zenith, _ = world.sun_direction_body()
     import math
-    assert math.cos(math.radians(zenith)) == pytest.approx(math.cos(math.radians(30)) * math.cos(math.radians(20)), abs=1e-6)
+    assert math.cos(math.radians(zenith)) == pytest.approx(math.cos(math.radians(30)) * math.cos(math.radians(20)),
+                                                           abs=1e-6)
     with pytest.raises(ValueError, match="axis_order"):
         SimWorld(axis_order="sideways")
 

@@ -172,7 +172,8 @@ def test_identify():
 
 
 def test_enable_disable_and_read_back():
-    with scripted_port([(ENABLE, b""), (DISABLE, b""), (REQ_ENABLE, DISABLED_REPLY), (REQ_ENABLE, ENABLED_REPLY)]) as port:
+    with scripted_port([(ENABLE, b""), (DISABLE, b""), (REQ_ENABLE, DISABLED_REPLY),
+                        (REQ_ENABLE, ENABLED_REPLY)]) as port:
         s = stage(port)
         s.enable(True)
         s.enable(False)
@@ -192,7 +193,8 @@ def test_position_is_read_from_the_counter():
 
 def test_reply_source_byte_is_not_insisted_on():
     # some controllers put 0 in the source byte (anchors-protocols §2.2)
-    with scripted_port([(REQ_POS, pos_reply(12_288_000, source=0x00)), (REQ_STATUS, status_reply(IDLE, source=0x21))]) as port:
+    with scripted_port([(REQ_POS, pos_reply(12_288_000, source=0x00)),
+                        (REQ_STATUS, status_reply(IDLE, source=0x21))]) as port:
         s = stage(port)
         assert s.position_deg() == 90.0
         assert s.is_moving() is False

@@ -23,15 +23,13 @@ a query may take at most that one sleep plus a little.
 
 from __future__ import annotations
 
-import time
-
 import pytest
+from peers.peer import run_peer
 
 from drivers.sim.bench import SimBench, SimBenchConfig
 from drivers.sim.motion import trapezoid
 from drivers.sim.pty_bridge import PtyBridge
 from drivers.thorlabs_apt import HEADER_SIZE, Msg, header_length
-from peers.peer import run_peer
 
 TIME_SCALE = 10.0
 STEP_DEG = 3.0 / 409600.0  # one K10CR1 micro-step

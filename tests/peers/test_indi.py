@@ -19,14 +19,14 @@ import signal
 import socket
 import subprocess
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
+from peers.peer import indi_tool
 
 from drivers.sim.bench import SimBench, SimBenchConfig
 from drivers.sim.lx200 import SIDEREAL_RATE_DEG_S, horizontal_to_equatorial
-from peers.peer import indi_tool
 
 TIME_SCALE = 10.0
 POLL_MS = 100  # the driver's POLLING_PERIOD: how often INDI reads the mount (default 1000 ms)
@@ -323,7 +323,7 @@ def test_indi_sets_the_site_and_the_time(indi):
     session.set("TIME_UTC.UTC;OFFSET=2030-06-15T12:00:00;10")  # INDI's offset: UTC+10
     session.wait_state("TIME_UTC", "Ok", timeout_s=5.0)
     assert session.sim.utc_offset_h == -10.0  # Meade's sign
-    expected = datetime(2030, 6, 15, 12, 0, 0, tzinfo=timezone.utc)
+    expected = datetime(2030, 6, 15, 12, 0, 0, tzinfo=UTC)
     lag_s = (session.sim.utc() - expected).total_seconds()
     # set to the second (INDI truncates: 12:00:00 went out as :SL21:59:59#), then running on
     assert -1.0 <= lag_s <= (time.monotonic() - t0) * TIME_SCALE + 1.0

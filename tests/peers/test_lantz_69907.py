@@ -19,11 +19,11 @@ No call may wait on a timeout (lantz's is 10 s): every call is timed against a s
 from __future__ import annotations
 
 import pytest
+from peers.peer import run_peer
 
 from drivers.sim.bench import SimBench, SimBenchConfig
 from drivers.sim.oriel69907 import amps_for_watts
 from drivers.sim.pty_bridge import PtyBridge
-from peers.peer import run_peer
 
 CALL_LIMIT_S = 0.25
 

@@ -22,8 +22,9 @@ timeout is 2 s; every call is timed against a small fraction of it).
 
 from __future__ import annotations
 
-from drivers.sim.bench import SimBench, SimBenchConfig
 from peers.peer import run_peer
+
+from drivers.sim.bench import SimBench, SimBenchConfig
 
 SOCKET_TIMEOUT_S = 2.0
 CALL_LIMIT_S = 0.25

@@ -19,10 +19,10 @@ from __future__ import annotations
 import re
 
 import pytest
+from peers.peer import run_peer
 
 from drivers.sim.bench import SimBench, SimBenchConfig
 from drivers.sim.lamp import LED
-from peers.peer import run_peer
 
 VISA_TIMEOUT_MS = 2000
 CALL_LIMIT_S = 0.25  # the longest one call may take: an eighth of the client's timeout

@@ -11,12 +11,12 @@ hangs it, which run_peer's limit turns into a failure)."""
 from __future__ import annotations
 
 import pytest
+from peers.peer import run_peer
 
 from drivers.sim.bench import SimBench, SimBenchConfig
 from drivers.sim.motion import trapezoid
 from drivers.sim.newport_smc100 import DISABLE_FROM_READY, READY_FROM_MOVING
 from drivers.sim.pty_bridge import PtyBridge
-from peers.peer import run_peer
 
 TIME_SCALE = 10.0
 PRINT_DEG = 2e-5  # a step of the encoder (3°/409600) and the printed decimals

@@ -28,9 +28,9 @@ import bench.runner as runner  # noqa: E402
 from bench.benchfile import load_bench_file  # noqa: E402
 from bench.campaign import load_campaign_file  # noqa: E402
 from bench.catalogue import Catalogue  # noqa: E402
+from bench.families.cmos import DESCRIPTOR as CMOS  # noqa: E402
 from bench.messages import Measure  # noqa: E402
-from bench.plans import make_plan  # noqa: E402
-from bench.preflight import preflight  # noqa: E402
+from bench.preflight import preflight_campaign  # noqa: E402
 from calibration.centroid import CentroidError, find_spot  # noqa: E402
 
 CAMPAIGN = ROOT / "examples" / "seed003.yaml"
@@ -101,14 +101,15 @@ def measure_only(points):
 def engine_run(session, campaign, points, frames: str) -> str:
     cat, engine = session.catalogue, session.engine
     run_id = cat.create_run(campaign_id=None, sensor_id="SIM-0001", plan_name="bench", plan_args={},
-                            provenance=runner._provenance(session, campaign, "SIM-0001"), n_points_planned=len(points))
+                            provenance=runner._provenance(session, campaign, "SIM-0001"), n_points_planned=len(points),
+                            descriptor=CMOS)
     engine.frames = frames
     return engine.execute(measure_only(points), run_id=run_id, n_points=len(points))
 
 
 def overhead(folder: Path) -> dict:
     campaign, bench_file = load_campaign_file(CAMPAIGN), load_bench_file(BENCH)
-    points = preflight(make_plan(campaign), check=lambda a, z: None).points
+    points = preflight_campaign(campaign, check=lambda a, z: None).points
     with Catalogue(folder / "overhead.sqlite") as cat:
         session = runner.open_session(bench_file, cat, time_scale=0.0)
         try:
@@ -142,7 +143,8 @@ def main():
         print(f"    connect + home               {best['open']:7.2f} s")
         print(f"    run (without the fits)       {best['total'] - best['open'] - best['fit']:7.2f} s")
         print(f"    fits (4 methods + held out)  {best['fit']:7.2f} s   chosen: {best['chosen']}")
-        print(f"    end to end                   {best['total']:7.2f} s   (median {statistics.median(r['total'] for r in results):.2f} s)"
+        print(f"    end to end                   {best['total']:7.2f} s   "
+              f"(median {statistics.median(r['total'] for r in results):.2f} s)"
               f"   target ≤ 5 s: {'met' if best['total'] <= 5 else 'MISSED'}")
 
         o = overhead(folder)
@@ -152,7 +154,8 @@ def main():
         print(f"    bare driver loop (move + capture + find_spot)  {bare:7.2f} ms/point  ({o['bare median']:.2f})")
         for frames in ("roi", "none"):
             e = o[f"engine {frames}"]
-            print(f"    RunEngine.execute + catalogue, frames={frames:4s}   {e:7.2f} ms/point  ({o[f'engine {frames} median']:.2f})"
+            print(f"    RunEngine.execute + catalogue, frames={frames:4s}   {e:7.2f} ms/point  "
+                  f"({o[f'engine {frames} median']:.2f})"
                   f"   difference {e - bare:+6.2f} ms   ratio {e / bare:5.2f}×")
         diff = o["engine roi"] - bare
         print(f"    target: engine − bare ≤ 2 ms/point (default frames=roi): {'met' if diff <= 2 else 'MISSED'}")

@@ -43,7 +43,7 @@ def main():
     results = {}
     for packing, label in [(wire.PACKED10, "packed 10-bit"), (wire.RAW16, "raw 16-bit")]:
         sensor = CmosSunSensor(open_port(url, baudrate=921600), packing=packing)
-        results[label] = per_call(lambda: find_spot(sensor.capture(), saturation_dn=1023))
+        results[label] = per_call(lambda: find_spot(sensor.capture(), saturation_dn=1023))  # noqa: B023 - called at once
     baseline = per_call(lambda: find_spot(sim.renderer.render(4.0), saturation_dn=1023))
     print("640×480 frame, 1 OpenCV thread, simulated time scale 0")
     print(f"  baseline: render + find_spot, no wire      {baseline * 1e3:6.2f} ms")

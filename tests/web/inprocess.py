@@ -1,7 +1,14 @@
-"""The web app in-process (Starlette's TestClient) around a bench service, with the tests' token and host."""
+"""The web app in-process (Starlette's TestClient) around a bench service, with the tests' token and host; and a
+bench service on the simulated QD bench (seed 002's quadrant photodiode)."""
+
+import contextlib
+from pathlib import Path
 
 from fastapi.testclient import TestClient
 
+from bench.benchfile import load_bench_file
+from bench.catalogue import Catalogue
+from bench.service import BenchService
 from web.app import create_app
 from web.settings import WebSettings
 
@@ -22,3 +29,19 @@ def settings_for_tests(**settings) -> WebSettings:
 def api_client(service, **settings) -> TestClient:
     """A client of the app around `service`; `settings` override the tests' WebSettings."""
     return TestClient(create_app(service, settings=settings_for_tests(**settings)))
+
+
+#: The simulated QD bench of seed 002 (README: sunbench serve --bench examples/bench-sim-qd.yaml)
+QD_BENCH = Path(__file__).resolve().parents[2] / "examples" / "bench-sim-qd.yaml"
+
+
+@contextlib.contextmanager
+def qd_bench_service(folder: Path):
+    """A started bench service on the simulated QD bench at time scale 0, its catalogue in `folder`."""
+    service = BenchService(load_bench_file(QD_BENCH), Catalogue(folder / "qd.sqlite"), time_scale=0.0,
+                           status_period_s=0.05).start()
+    try:
+        yield service
+    finally:
+        service.close()
+        service.catalogue.close()

@@ -14,27 +14,26 @@ import time
 from contextlib import contextmanager
 from types import SimpleNamespace
 
+import annotated_types
 import cv2
 import httpx
 import numpy as np
 import pytest
 import uvicorn
 from fastapi.testclient import TestClient
+from inprocess import AUTH, TOKEN, api_client, settings_for_tests
 from uvicorn.logging import AccessFormatter
 
-import annotated_types
-
 from bench.campaign import Campaign, PhysicalProcedure, Seed003Procedure
+from bench.events import BenchEvent
 from bench.runner import bench_data
 from bench.service import EventBus
 from calibration.models import METHODS, calibration_from_dict
 from web.app import create_app
 from web.routes.runs import _physical_records
-from web.server import BenchServer, RedactToken, Shutdown, serve
 from web.security import load_or_create_token
+from web.server import BenchServer, RedactToken, Shutdown, serve
 from web.settings import WebSettings
-
-from inprocess import AUTH, TOKEN, api_client, settings_for_tests
 
 SMALL = Campaign(name="small", frames="none", seed003=Seed003Procedure(
     azimuth_step_deg=90.0, repeats=1, centre_repeats=1, tilt_stage=False))
@@ -72,6 +71,10 @@ READS = [
     ("GET", "/api/runs/1/log", None),
     ("GET", "/api/runs/1/values", None),
     ("GET", "/api/runs/1/fit", None),
+    ("GET", "/api/runs/1/qd/currents", None),
+    ("GET", "/api/runs/1/qd/dark", None),
+    ("GET", "/api/runs/1/qd/error-map", None),
+    ("GET", "/api/runs/1/qd/metrics", None),
     ("GET", "/api/runs/1/data.csv", None),
     ("GET", "/api/calibrations/1/physical.json", None),
     ("GET", "/api/calibrations/1/physical.h", None),
@@ -374,13 +377,15 @@ def test_every_limit_of_the_physical_procedure_is_a_422_naming_its_field(client,
 def test_physical_parameter_targets_are_checked_by_the_model(client):
     for targets, words in [({"x0_pix": 0.01}, "unknown parameter"), ({"x0_px": 0}, "positive"),
                            ({"x0_px": -1.0}, "positive")]:
-        response = client.post("/api/campaigns/dry-run", json={**PHYSICAL_JSON, "physical": {"parameter_targets": targets}},
+        response = client.post("/api/campaigns/dry-run",
+                               json={**PHYSICAL_JSON, "physical": {"parameter_targets": targets}},
                                headers=AUTH)
         assert response.status_code == 422
         (error,) = response.json()["detail"]
         assert error["loc"] == ["body", "physical", "parameter_targets"] and words in error["msg"]
     fine = {"parameter_targets": {"x0_px": 0.02, "gap_mm": 0.001}, "check_rms_target_deg": 0.03}
-    assert client.post("/api/campaigns/dry-run", json={**PHYSICAL_JSON, "physical": fine}, headers=AUTH).status_code == 200
+    fine_run = client.post("/api/campaigns/dry-run", json={**PHYSICAL_JSON, "physical": fine}, headers=AUTH)
+    assert fine_run.status_code == 200
 
 
 def test_a_physical_campaign_runs_stops_at_a_batch_and_shows_its_decisions(client, service):
@@ -400,8 +405,10 @@ def test_a_physical_campaign_runs_stops_at_a_batch_and_shows_its_decisions(clien
     assert values["values"] == service.catalogue.run_values(run["id"])  # every record, as `sunbench show` reads them
     physical = values["physical"]
     batches, stop = physical["batches"], physical["stop"]
-    assert [b["batch"] for b in batches] == list(range(1, len(batches) + 1)) and stop["batches_measured"] == len(batches)
-    assert physical["n_batches"] == procedure.max_batches and physical["check_rms_target_deg"] == procedure.check_rms_target_deg
+    assert [b["batch"] for b in batches] == list(range(1, len(batches) + 1))
+    assert stop["batches_measured"] == len(batches)
+    assert physical["n_batches"] == procedure.max_batches
+    assert physical["check_rms_target_deg"] == procedure.check_rms_target_deg
     assert physical["n_check_directions"] == procedure.check_directions
     assert stop["reason"] in ("targets met", "cap reached") and stop["stop"] == (stop["reason"] == "targets met")
     for b in batches:
@@ -431,7 +438,8 @@ def test_the_physical_batches_come_in_batch_order():
     decision = {"stop": False, "reasons": ["go on"], "n_fit_directions": 16, "n_check_directions": 8}
     values = {f"physical_batch_{k}": {**decision, "n_fit_directions": k} for k in (10, 2, 1, 9)}
     records = _physical_records({**values, "physical_batch_x": {}, "exposure_ms": 4.0})
-    assert [b["batch"] for b in records["batches"]] == [1, 2, 9, 10] == [b["n_fit_directions"] for b in records["batches"]]
+    batches = records["batches"]
+    assert [b["batch"] for b in batches] == [1, 2, 9, 10] == [b["n_fit_directions"] for b in batches]
     assert records["stop"] is None and records["n_batches"] is None
     assert _physical_records({"exposure_ms": 4.0}) is None
 
@@ -496,9 +504,9 @@ def test_an_idle_stream_sends_keep_alives():
         lines = response.iter_lines()
         seen = _read_events(lines, until=lambda s: [k for k, _ in s].count("comment") >= 2, timeout_s=5)
         assert seen == [("comment", ": keep-alive")] * 2
-        bus.publish({"kind": "log", "message": "hello", "value": np.float64(1.5), "n": np.int64(2)})
+        bus.publish(BenchEvent("log", None, {"message": "hello", "value": np.float64(1.5), "n": np.int64(2)}))
         seen = _read_events(lines, until=lambda s: any(k == "log" for k, _ in s), timeout_s=5)
-        assert seen[-1] == ("log", {"kind": "log", "message": "hello", "value": 1.5, "n": 2})
+        assert seen[-1] == ("log", {"kind": "log", "run_id": None, "message": "hello", "value": 1.5, "n": 2})
         assert bus.subscribers == 1
 
 
@@ -510,7 +518,7 @@ def test_an_event_from_the_engine_thread_reaches_an_idle_stream_at_once():
 
     def publish(index, stamps):
         stamps.append(time.perf_counter())
-        bus.publish({"kind": "point", "index": index})
+        bus.publish(BenchEvent("point", None, {"index": index}))
 
     with TestClient(app) as client, client.stream("GET", "/api/events", headers=AUTH) as response:
         lines = response.iter_lines()
@@ -572,7 +580,7 @@ def test_a_client_that_disconnects_is_unsubscribed():
             assert bus.subscribers == 1
         # leaving the block mid-stream closes the connection
         _wait_for(lambda: bus.subscribers == 0, "the stream to unsubscribe", 5)
-        bus.publish({"kind": "log"})  # nobody left to deliver to, and no error for the publisher
+        bus.publish(BenchEvent("log", None))  # nobody left to deliver to, and no error for the publisher
 
 
 def test_the_server_asked_to_exit_ends_open_streams_at_once():

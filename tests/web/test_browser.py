@@ -17,11 +17,10 @@ from pathlib import Path
 
 import pytest
 from playwright.sync_api import Page, expect, sync_playwright
+from serving import ROOT, serving
 
 from calibration.models import METHODS, calibration_from_dict
 from calibration.uncertainty import uncertainty_document
-
-from serving import ROOT, serving
 
 ARTIFACTS = Path(os.environ.get("SUNBENCH_ARTIFACTS", ROOT / "test-artifacts")) / "browser"
 CHROMIUM = os.environ.get("SUNBENCH_CHROMIUM", "/usr/bin/chromium")
@@ -352,7 +351,8 @@ def test_a_physical_campaign_from_the_launcher_to_its_results(page, server):
     page.shots("physical-results")
 
     page.goto("/results")
-    expect(page.locator("#runs-table tbody tr", has_text="physical").first).to_contain_text(f"{recorded} / at most {cap}")
+    physical_row = page.locator("#runs-table tbody tr", has_text="physical").first
+    expect(physical_row).to_contain_text(f"{recorded} / at most {cap}")
     campaign_id = _api(server, f"/api/runs/{run_id}")["campaign_id"]
     page.goto(f"/fleet?campaign={campaign_id}")  # its point total is a cap there too
     expect(page.locator("#fleet tbody tr td").nth(4)).to_have_text(f"{recorded} / at most {cap}")
@@ -828,10 +828,168 @@ def test_after_a_restart_the_run_page_links_the_last_run(browser, tmp_path):
         try:
             page.goto("/run")
             paste_token(page, served.token)
-            expect(page.locator("#run-title")).to_have_text(f"none running · last run {run['id']} · sensor SIM-0001 · "
-                                                            "plan seed003 · completed")
+            expect(page.locator("#run-title")).to_have_text(f"none running · last run {run['id']} · sensor SIM-0001 "
+                                                            "(cmos) · plan seed003 · completed")
             expect(page.locator("#result-link a")).to_have_attribute("href", f"/results?run={run['id']}")
             shots("last-run")
         finally:
+            context.close()
+        assert not errors, errors
+
+
+# -- a QD bench (seed 002's quadrant photodiode): launcher → live run → its family's results view ------------------
+QD_BENCH = ROOT / "examples" / "bench-sim-qd.yaml"
+
+
+def _plot_traces(page: Page, plot_id: str) -> list[dict]:
+    """The traces plotly holds for a plot: their type, name and number of points."""
+    return page.evaluate("""id => (document.getElementById(id).data || []).map(t => ({type: t.type || "scatter",
+        name: t.name, n: t.type === "heatmap" ? t.z.flat().filter(v => v !== null).length : (t.x || []).length}))""",
+                         plot_id)
+
+
+def test_a_qd_campaign_from_the_launcher_to_its_results_view(browser, tmp_path):
+    """On a QD bench the launcher offers the QD plans only; the live run page shows currents, no frame and no spot
+    map; the results page shows the QD view: every method's figures, the error map over the field, the dark
+    current with its model, the quadrant currents."""
+    with serving(tmp_path, None, "--bench", str(QD_BENCH), "--time-scale", "0") as served:
+        server = (served.base, served.token)
+        context = browser.new_context(base_url=served.base, viewport={"width": 1280, "height": 900})
+        context.set_default_timeout(TIMEOUT_MS)
+        page = context.new_page()
+        errors = []
+        page.on("pageerror", lambda exc: errors.append(f"uncaught: {exc}"))
+        page.on("console", lambda m: m.type == "error" and "Failed to load resource" not in m.text
+                and errors.append(f"console: {m.text}"))
+        shots = Shots(page, "qd")
+        try:
+            page.goto("/")
+            paste_token(page, served.token)
+            # the bench page: the module's currents in the status, no frame to show
+            expect(page.locator("#s-sensor")).to_contain_text(re.compile(r"^qd: [\d.]+ °C, currents [\d.]+ [pnµ]A, "))
+            expect(page.locator("#frame-section")).to_be_hidden()
+            page.goto("/launch")
+            options = page.eval_on_selector_all("select[name=plan] option", "os => os.map(o => o.value)")
+            assert options == ["qd-grid", "qd-dark"]  # the bench's family's plans only
+            expect(page.locator("fieldset[data-plan='qd-grid']")).to_be_visible()
+            expect(page.locator("label[data-frames]")).to_be_hidden()  # a photodiode keeps no frame
+            page.fill("fieldset[data-plan='qd-grid'] input[name=step_deg]", "10")
+            page.fill("fieldset[data-plan='qd-grid'] input[name=repeats]", "2")
+            page.click("#dry-run")
+            expect(page.locator("#message")).to_have_text("dry run ok: nothing moved")
+            expect(page.locator("#d-points")).to_have_text(str(81 + 64 + 4))  # 9 × 9 nodes, 8 × 8 checks, 4 dark
+            expect(page.locator("#d-frames-label")).to_have_text("Readings per sensor")
+            shots("launcher")
+            # a second tab follows the run live, from its events (the token is the context's, in localStorage)
+            live = context.new_page()
+            live.on("pageerror", lambda exc: errors.append(f"uncaught (live): {exc}"))
+            live.goto("/run")
+            expect(live.locator("#stream-state")).to_have_text("connected")
+            page.click("#start")
+            expect(page.locator("#started")).to_contain_text("queued")
+
+            def fitted():
+                runs = _api(server, "/api/runs")["data"]
+                return runs and _api(server, f"/api/runs/{runs[-1]['id']}/calibrations")["count"] and runs[-1]
+            deadline = time.monotonic() + 120
+            while not fitted():
+                assert time.monotonic() < deadline, "the QD campaign did not finish"
+                time.sleep(0.2)
+            run = fitted()
+            _wait_idle(server)
+            expect(live.locator("#log")).to_contain_text("finished: completed")
+            expect(live.locator("#currents-section")).to_be_visible()
+            expect(live.locator("#spot-section")).to_be_hidden()
+            assert [t["n"] for t in _plot_traces(live, "currents-plot")] == [run["n_points_recorded"]] * 5
+            expect(live.locator("#n-currents")).to_contain_text(re.compile(r"^Q1 [\d.]+ [nµ]A, Q2 .*; sum "))
+            expect(live.locator("#n-stage")).to_have_text("grid")
+            recorded = run["n_points_recorded"]
+            expect(live.locator("#progress-text")).to_have_text(f"{recorded} / {recorded}")
+            live.screenshot(path=ARTIFACTS / "qd-live-run-events.png", full_page=True)
+            live.close()
+
+            # the live run page, joined after the end: the run's currents, no frame, no spot map
+            page.goto("/run")
+            expect(page.locator("#run-title")).to_contain_text("(qd) · plan qd-grid")
+            expect(page.locator("#currents-section")).to_be_visible()
+            expect(page.locator("#spot-section")).to_be_hidden()
+            expect(page.locator("#frame-part")).to_be_hidden()
+            traces = _plot_traces(page, "currents-plot")
+            assert [t["name"] for t in traces] == ["Q1", "Q2", "Q3", "Q4", "sum"]
+            assert all(t["n"] == run["n_points_recorded"] for t in traces)
+            expect(page.locator("#log")).to_contain_text("Q1 ")
+            expect(page.locator("#n-currents")).to_contain_text(re.compile(r"^Q1 [\d.]+ [nµ]A, Q2 .*; sum [\d.]+ µA$"))
+            expect(page.locator("#n-point")).to_contain_text(f"({run['n_points_recorded']} / ")
+            shots("live-run")
+
+            # the results: the runs list says the family, the run's page shows the QD view
+            page.goto("/results")
+            expect(page.locator("#runs-table tbody tr").first).to_contain_text("qd")
+            page.click(f"#runs-table a[href='/results?run={run['id']}']")
+            expect(page.locator("#run-heading")).to_have_text(f"Run {run['id']} · sensor SIM-0001 (qd)")
+            expect(page.locator("#qd-view")).to_be_visible()
+            for cmos in ("#metrics-section", "#spot-section", "#fit-plots", "#uncertainty-section"):
+                expect(page.locator(cmos)).to_be_hidden()
+            rows = page.locator("#qd-metrics tbody tr")
+            expect(rows).to_have_count(3)  # physical, polynomial, geometric
+            expect(page.locator("#qd-metrics tbody tr.chosen")).to_have_count(1)
+            chosen = page.locator("#qd-metrics tbody tr.chosen td").first.inner_text().split()[0]
+            metrics = _api(server, f"/api/runs/{run['id']}/qd/metrics")
+            stored = next(m for m in metrics["data"] if m["chosen"])
+            assert chosen == stored["method"]
+            held_max = float(page.locator("#qd-metrics tbody tr.chosen td").nth(1).inner_text())
+            assert held_max == pytest.approx(stored["heldout"]["max_deg"], abs=6e-5)
+            for plot in ("qd-error-plot", "qd-dark-plot", "qd-currents-plot", "qd-sum-plot"):
+                expect(page.locator(f"#{plot} .main-svg").first).to_be_visible()
+            # the error map: the nodes as a heat map, the check points held out between them
+            error = {t["name"]: t for t in _plot_traces(page, "qd-error-plot")}
+            assert error["at the nodes (fitted)"]["type"] == "heatmap"
+            assert error["at the nodes (fitted)"]["n"] >= 81 - 2  # all but a direction the fit left out whole
+            assert error["held out (check points)"]["n"] >= 64 - 2
+            expect(page.locator("#qd-error-plot .colorbar")).to_contain_text("angular error [°]")
+            expect(page.locator("#qd-error-info")).to_contain_text("held out at the check points")
+            # the dark current: each quadrant's readings and its model's line
+            dark = _plot_traces(page, "qd-dark-plot")
+            lines = [t for t in dark if t["name"].startswith("Q") and "readings" not in t["name"]]
+            assert len([t for t in dark if t["name"].endswith("readings")]) == 4 and len(lines) == 4
+            assert sum(t["n"] for t in dark if t["name"] == "Q1 readings") >= 4 * 8 - 2
+            assert [t["name"] for t in _plot_traces(page, "qd-currents-plot")] == ["Q1", "Q2", "Q3", "Q4", "sum"]
+            assert page.locator("#downloads button").all_inner_texts() == ["bench data CSV", f"{chosen} JSON",
+                                                                          f"{chosen} C header"]
+            shots("results")
+
+            # another method: its map and its name
+            other = next(m["method"] for m in metrics["data"] if not m["chosen"])
+            page.select_option("#method", other)
+            expect(page.locator("#qd-error-heading")).to_have_text(f"Angular error of {other} over the field")
+            expect(page.locator("#qd-error-plot .gtitle")).to_contain_text(other)
+            page.select_option("#qd-error-kind", "check")
+            names = [t["name"] for t in _plot_traces(page, "qd-error-plot")]
+            assert "held out (check points)" in names and "at the nodes (fitted)" not in names
+            shots("results-other")
+            with page.expect_download() as download:
+                page.click(f"#downloads button:has-text('{other} C header')")
+            assert "sunbench_qd_sun_direction" in Path(download.value.path()).read_text()
+
+            # a dark sweep alone: no calibration, its dark current with the model fitted to its readings
+            _api(server, "/api/campaigns", {"name": "dark", "plan": "qd-dark", "qd_dark": {"temperatures_c": [15, 35],
+                                                                                           "repeats": 3}})
+            deadline = time.monotonic() + 60
+            while (len(runs := _api(server, "/api/runs")["data"]) < 2 or runs[-1]["status"] != "completed"
+                   or _api(server, "/api/status")["engine"]["state"] != "idle"):
+                assert time.monotonic() < deadline, "the dark sweep did not finish"
+                time.sleep(0.2)
+            _wait_idle(server)
+            dark_run = _api(server, "/api/runs")["data"][-1]
+            page.goto(f"/results?run={dark_run['id']}")
+            expect(page.locator("#qd-metrics-none")).to_have_text(
+                "No calibration: a dark sweep calibrates no direction (a grid run's fit uses it).")
+            expect(page.locator("#qd-error-section")).to_be_hidden()
+            expect(page.locator("#qd-dark-plot .gtitle")).to_contain_text("model fitted to these readings")
+            assert sum(t["n"] for t in _plot_traces(page, "qd-dark-plot") if t["name"].endswith("readings")) == 4 * 6
+            assert page.locator("#downloads button").all_inner_texts() == ["bench data CSV"]
+            shots("results-dark-sweep")
+        finally:
+            shots("last")
             context.close()
         assert not errors, errors

@@ -6,12 +6,12 @@ bench/results.py."""
 import time
 
 import numpy as np
-
-from bench.results import fit_residuals, point_means
-from calibration.centroid import SpotFlag
-from bench.runner import EDGE_REASON, bench_data
-
 from inprocess import AUTH
+
+from bench.descriptor import ReadingRecord
+from bench.results import fit_residuals, point_means
+from bench.runner import EDGE_REASON, bench_data
+from calibration.centroid import SpotFlag
 
 SMALL = {"name": "small", "frames": "none",
          "seed003": {"azimuth_step_deg": 90.0, "repeats": 1, "centre_repeats": 1, "tilt_stage": False}}
@@ -32,8 +32,8 @@ def test_points_clipped_at_the_edge_are_marked_as_left_out_of_every_fit(client, 
     run_id = _finished_run(client)
     catalogue = service.catalogue
     fitted = set(bench_data(catalogue, [run_id]).frame_id.tolist())
-    readings = [r for r in catalogue.readings(run_id) if r["status"] == "ok"]
-    edge = {r["point_id"] for r in readings if r["id"] not in fitted}
+    readings = [r for r in catalogue.readings(run_id) if r.ok]
+    edge = {r.point_id for r in readings if r.id not in fitted}
     assert edge, "the small campaign's 60° points at azimuth 90° and 270° touch the detector's edge"
 
     points = client.get(f"/api/runs/{run_id}/points", headers=AUTH).json()["data"]
@@ -57,27 +57,27 @@ def test_frames_a_calibration_rejected_are_left_out_with_its_reason(client, serv
     run_id = _finished_run(client)
     catalogue = service.catalogue
     record = next(c for c in catalogue.calibrations(run_id) if c["chosen"])
-    readings = [r for r in catalogue.readings(run_id) if r["status"] == "ok" and not r["flags"]]
+    readings = [r for r in catalogue.readings(run_id) if r.ok and not r.value("flags", 0)]
     target = readings[len(readings) // 2]  # one frame: its point (one repeat) is left out whole
     reason = "its direction disagrees with the physical model by 6.30 px, more than 5 × its centroid noise"
     document = {**record["document"], "rejected": [
-        {"row": target["id"], "zenith_deg": target["zenith_deg"], "azimuth_deg": target["azimuth_body_deg"],
-         "x_px": target["x_px"], "y_px": target["y_px"], "offset_px": 6.3, "reason": reason},
+        {"row": target.id, "zenith_deg": target.zenith_deg, "azimuth_deg": target.azimuth_body_deg,
+         "x_px": target.value("x_px"), "y_px": target.value("y_px"), "offset_px": 6.3, "reason": reason},
         {"row": None, "zenith_deg": 1.0, "azimuth_deg": 2.0, "x_px": 3.0, "y_px": 4.0, "offset_px": 5.0,
          "reason": "a frame of a CSV without row numbers: it cannot be placed"}]}
     catalogue.add_calibration(run_id, record["method"], document, record["metrics"], True)
 
     fit = fit_residuals(catalogue, run_id)  # the latest record of the chosen method
     by_id = {p["id"]: p for p in fit["data"]}
-    point = by_id[target["point_id"]]
+    point = by_id[target.point_id]
     assert point["excluded"] == reason
-    assert point["frames_left_out"] == [{"reading_id": target["id"], "reason": reason}]
-    assert [p["id"] for p in fit["data"] if p["excluded"] and p["excluded"] != EDGE_REASON] == [target["point_id"]]
+    assert point["frames_left_out"] == [{"reading_id": target.id, "reason": reason}]
+    assert [p["id"] for p in fit["data"] if p["excluded"] and p["excluded"] != EDGE_REASON] == [target.point_id]
     # the rejection is the calibration's: the run's points say nothing of it
     plain = {p["id"]: p for p in point_means(catalogue, run_id)}
-    assert plain[target["point_id"]]["excluded"] is None
+    assert plain[target.point_id]["excluded"] is None
     over_http = client.get(f"/api/runs/{run_id}/fit", headers=AUTH).json()
-    assert next(p for p in over_http["data"] if p["id"] == target["point_id"])["excluded"] == reason
+    assert next(p for p in over_http["data"] if p["id"] == target.point_id)["excluded"] == reason
 
 
 class _Catalogue:
@@ -93,9 +93,10 @@ class _Catalogue:
         return [{"id": 7, "key": "grid/a", "stage": "grid", "zenith_deg": 0.0, "azimuth_body_deg": 0.0}]
 
     def readings(self, run_id):
-        frame = {"point_id": 7, "status": "ok", "flags": 0}
-        return [{**frame, "id": 1, "x_px": 100.0, "y_px": 200.0}, {**frame, "id": 2, "x_px": 102.0, "y_px": 202.0},
-                {**frame, "id": 3, "x_px": 130.0, "y_px": 230.0, "flags": int(SpotFlag.ROI_CLIPPED)}]
+        def frame(reading_id, x, y, flags=0):
+            return ReadingRecord(reading_id, 7, run_id, "grid/a", "grid", 0.0, 0.0, 0.0, 0.0, None, reading_id - 1,
+                                 "ok", 0.0, values={"x_px": x, "y_px": y, "flags": flags})
+        return [frame(1, 100.0, 200.0), frame(2, 102.0, 202.0), frame(3, 130.0, 230.0, int(SpotFlag.ROI_CLIPPED))]
 
     def calibrations(self, run_id):
         return [{"method": "m", "chosen": True, "document": self.document}]

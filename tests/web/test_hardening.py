@@ -12,7 +12,9 @@ from types import SimpleNamespace
 import httpx
 import pytest
 from fastapi.testclient import TestClient
+from inprocess import AUTH, TOKEN, api_client, settings_for_tests
 from pydantic import BaseModel, ValidationError
+from test_api import COMMANDS, READS, SMALL_JSON, _finished_run, _read_events, _served, _submit, _wait_for
 
 from bench.campaign import Campaign
 from bench.service import EventBus
@@ -22,9 +24,6 @@ from web.idempotency import IdempotencyKeys, KeyReused
 from web.routes.docs import inline_script_hashes
 from web.schemas import JogCommand, LampCommand, MountConfirm, ShutterCommand
 from web.settings import WebSettings
-
-from inprocess import AUTH, TOKEN, api_client, settings_for_tests
-from test_api import COMMANDS, READS, SMALL_JSON, _finished_run, _read_events, _served, _submit, _wait_for
 
 MAX_ID = 2**63 - 1
 EXTERNAL_URL = re.compile(r"(?:https?:)?//[a-z0-9.-]+\.[a-z]{2,}", re.IGNORECASE)
@@ -325,7 +324,9 @@ def test_a_key_is_forgotten_after_its_time_and_a_refused_submit_keeps_it_free():
 
 # -- the simulated bench says so ------------------------------------------------------------------------------------
 def test_the_status_and_every_page_say_the_bench_is_simulated_and_its_time_scale(client, service):
-    assert client.get("/api/status", headers=AUTH).json()["bench"] == {"simulated": True, "time_scale": 0.0}
+    bench = client.get("/api/status", headers=AUTH).json()["bench"]
+    assert (bench["simulated"], bench["time_scale"]) == (True, 0.0)
+    assert (bench["family"], bench["has_frames"]) == ("cmos", True)  # and what it measures (tests/web/test_qd.py)
     for path in ("/", "/launch", "/run", "/results", "/fleet"):
         html = client.get(path).text
         assert 'id="bench-banner"' in html and "Simulated bench" in html and "time scale 0" in html, path

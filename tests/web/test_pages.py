@@ -6,17 +6,15 @@ import time
 import typing
 from html.parser import HTMLParser
 
+import annotated_types
 import numpy as np
 import pytest
+from inprocess import AUTH, TOKEN, api_client
 
-import annotated_types
-
-from bench.campaign import Campaign, PhysicalProcedure, Seed003Procedure
+from bench.campaign import Campaign, PhysicalProcedure, QdDarkSweep, QdGridProcedure, Seed003Procedure
 from calibration.models import METHODS
 from calibration.models.physical import FITTED
 from web.routes.pages import PAGES, STATIC_DIR
-
-from inprocess import AUTH, TOKEN, api_client
 
 SMALL = Campaign(name="small", frames="none", seed003=Seed003Procedure(
     azimuth_step_deg=90.0, repeats=1, centre_repeats=1, tilt_stage=False)).model_dump(mode="json")
@@ -108,7 +106,8 @@ def test_the_event_stream_takes_the_token_as_a_query_parameter(client):
         assert _first_event(response)
 
 
-@pytest.mark.parametrize("params", [{}, {"token": "wrong-token-0123456789"}, {"token": ""}], ids=["none", "wrong", "empty"])
+@pytest.mark.parametrize("params", [{}, {"token": "wrong-token-0123456789"}, {"token": ""}],
+                         ids=["none", "wrong", "empty"])
 def test_the_event_stream_refuses_a_missing_or_wrong_query_token(client, params):
     response = client.get("/api/events", params=params)
     assert response.status_code == 401 and response.headers["www-authenticate"] == "Bearer"
@@ -156,7 +155,8 @@ def test_the_fit_route_gives_radius_and_residuals_of_each_method(client):
     assert 0 < fit["x0_px"] < 640 and 0 < fit["y0_px"] < 480
     for p, q in zip(fit["data"], points, strict=True):
         assert (p["id"], p["zenith_deg"], p["x_px"]) == (q["id"], q["zenith_deg"], q["x_px"])
-        assert p["radius_px"] == pytest.approx(((p["x_px"] - fit["x0_px"]) ** 2 + (p["y_px"] - fit["y0_px"]) ** 2) ** 0.5)
+        radius = ((p["x_px"] - fit["x0_px"]) ** 2 + (p["y_px"] - fit["y0_px"]) ** 2) ** 0.5
+        assert p["radius_px"] == pytest.approx(radius)
     errors = [p["error_deg"] for p in fit["data"]]
     assert all(e is not None and 0 <= e < 2.0 for e in errors)  # a calibrated sensor: within a couple of degrees
     normal = [p for p in fit["data"] if p["zenith_deg"] == 0]
@@ -228,28 +228,34 @@ def _limits(field) -> tuple[float | None, float | None]:
     return low, high
 
 
-def test_the_launcher_offers_the_seed003_and_physical_plans(client):
+def test_the_launcher_offers_the_seed003_physical_and_qd_plans(client):
+    # the page holds every plan's fieldset; launch.js keeps those of the bench's family (its <body data-plans>)
     form = _launch_form(client)
-    assert form.options == ["seed003", "physical"]
+    assert form.options == ["seed003", "physical", "qd-grid", "qd-dark"]
     assert set(form.options) <= set(typing.get_args(Campaign.model_fields["plan"].annotation))
-    assert set(form.inputs) == {None, "seed003", "physical"}  # one fieldset per plan, named as Campaign's field
+    # one fieldset per plan, named as the plan (its data-field names Campaign's field: qd_grid for qd-grid)
+    assert set(form.inputs) == {None, "seed003", "physical", "qd-grid", "qd-dark"}
     assert {"name", "operator", "sensors"} <= set(form.inputs[None]) and {"plan", "frames"} <= form.selects
 
 
-@pytest.mark.parametrize("plan, model", [("seed003", Seed003Procedure), ("physical", PhysicalProcedure)])
+@pytest.mark.parametrize("plan, model", [("seed003", Seed003Procedure), ("physical", PhysicalProcedure),
+                                         ("qd-grid", QdGridProcedure), ("qd-dark", QdDarkSweep)])
 def test_every_field_of_the_launcher_has_the_models_default_and_limits(client, plan, model):
     inputs = _launch_form(client).inputs[plan]
     targets = {name.split(".", 1)[1] for name in inputs if name.startswith("parameter_targets.")}
     if plan == "physical":  # one optional 1σ target per fitted parameter, blank by default
         assert targets == set(FITTED)
-        assert all("value" not in inputs[f"parameter_targets.{t}"] and "required" not in inputs[f"parameter_targets.{t}"]
+        assert all("value" not in inputs[f"parameter_targets.{t}"]
+                   and "required" not in inputs[f"parameter_targets.{t}"]
                    and inputs[f"parameter_targets.{t}"]["min"] == "0" for t in targets)
     fields = {name for name in inputs if "." not in name}
     assert fields <= set(model.model_fields), fields - set(model.model_fields)
     wanted = {"seed003": {"azimuth_step_deg", "zenith_stage_deg", "repeats", "centre_repeats", "tilt_stage"},
               "physical": {"first_batch", "batch_size", "max_batches", "check_directions", "repeats",
                            "check_rms_target_deg", "parameter_budget_deg", "zenith_max_deg", "zenith_step_deg",
-                           "azimuth_step_deg", "edge_margin_px"}}[plan]
+                           "azimuth_step_deg", "edge_margin_px"},
+              "qd-grid": {"field_deg", "step_deg", "repeats", "check_points", "temperature_c"},  # + dark.* (test_qd.py)
+              "qd-dark": {"temperatures_c", "repeats", "tolerance_c"}}[plan]
     assert fields == wanted
     for name in fields:
         attrs, field = inputs[name], model.model_fields[name]

@@ -4,13 +4,13 @@ GET /api/runs/{id}/calibrations for the results page (which draws them: tests/we
 import json
 
 import pytest
+from inprocess import AUTH
 
+from bench.families.cmos import DESCRIPTOR as CMOS
 from calibration.models import METHODS
 from calibration.synthetic import EXAMPLE_BUILD, synthetic_bench_data
 from calibration.uncertainty import uncertainty_document
 from web.routes.pages import STATIC_DIR
-
-from inprocess import AUTH
 
 PROVENANCE = {"bench_config_hash": "sha256:test", "software_version": "test", "devices": {}, "simulated": True,
               "operator": "test"}
@@ -37,7 +37,7 @@ def documents():
 def run_id(service, documents):
     catalogue = service.catalogue
     run_id = catalogue.create_run(campaign_id=None, sensor_id="SIM-0001", plan_name="seed003", plan_args={},
-                                  provenance=PROVENANCE)
+                                  provenance=PROVENANCE, descriptor=CMOS)
     physical, seed003 = documents
     catalogue.add_calibration(run_id, "seed003", seed003, {"method": "seed003"}, False)
     catalogue.add_calibration(run_id, "physical", physical, {"method": "physical"}, True)
@@ -62,7 +62,7 @@ def test_the_calibrations_carry_quality_rejected_frames_and_the_uncertainty_map(
 
 def test_empty_quality_and_rejected_lists_stay_empty(client, service, documents):
     run_id = service.catalogue.create_run(campaign_id=None, sensor_id="S", plan_name="seed003", plan_args={},
-                                          provenance=PROVENANCE)
+                                          provenance=PROVENANCE, descriptor=CMOS)
     document = {**documents[0], "quality": {"chi2_dof": None, "repeat_scatter_px": None, "residual_rms_px": 0.01,
                                             "warnings": []}, "rejected": []}
     service.catalogue.add_calibration(run_id, "physical", document, {}, True)

@@ -8,10 +8,10 @@ import time
 import urllib.error
 import urllib.request
 
-from bench.catalogue import Catalogue
-
 from clitools import flat, sunbench_process
 from serving import serving
+
+from bench.catalogue import Catalogue
 
 # an LED warms up in seconds (a xenon lamp takes ~7 simulated minutes); 20× real time: ~1 s a point
 BENCH = "simulation:\n  time_scale: 20\n  source: led\n"
@@ -76,7 +76,7 @@ def test_the_command_line_reads_beside_a_running_server_and_a_second_writer_is_r
         assert "running" in runs.stdout and "SIM-0001" in runs.stdout
         show = sunbench_process("show", run_id, "--catalogue", db, cwd=tmp_path)
         assert show.returncode == 0, show.stderr
-        assert flat(show.stdout).startswith(f"run {run_id} · sensor SIM-0001 · plan seed003 · running")
+        assert flat(show.stdout).startswith(f"run {run_id} · sensor SIM-0001 (cmos) · plan seed003 · running")
         export = sunbench_process("export", run_id, "--format", "csv", "--catalogue", db, cwd=tmp_path)
         assert export.returncode == 0, export.stderr
         assert len([line for line in export.stdout.splitlines() if line and not line.startswith("#")]) >= 3

@@ -7,8 +7,8 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, Header, HTTPException, Request, Response, status
 
 from ..deps import CampaignId, CatalogueDep, ServiceDep
-from ..schemas import CampaignCreate, CampaignQueued, CampaignsPublic, DryRunPublic, FleetPublic, Message
 from ..idempotency import KeyReused
+from ..schemas import CampaignCreate, CampaignQueued, CampaignsPublic, DryRunPublic, FleetPublic, Message
 from ..security import require_read, require_token
 
 router = APIRouter(prefix="/api/campaigns", tags=["campaigns"])

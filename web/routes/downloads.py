@@ -8,10 +8,8 @@ from pathlib import Path
 from fastapi import APIRouter, HTTPException
 from fastapi.responses import JSONResponse, PlainTextResponse
 
-from bench.datafile import header_from_document, write_bench_csv
-from bench.runner import bench_data
-from calibration.errors import InsufficientDataError
-from calibration.models import calibration_from_dict
+from bench.families import family
+from calibration.errors import CalibrationError, InsufficientDataError
 
 from ..deps import READ, CatalogueDep, RunId
 
@@ -39,15 +37,16 @@ def _calibration_document(catalogue, run_id: int, method: str) -> dict:
 @router.get("/runs/{run_id}/data.csv", response_class=PlainTextResponse, summary="Bench data CSV of a run",
             responses={200: {"content": {"text/csv": {}}}})
 def download_run_data(run_id: RunId, catalogue: CatalogueDep):
-    """The run's lineage as bench data (true angles, spot centres), in the format ``sunbench fit`` reads."""
+    """The run's lineage as bench data, in the format ``sunbench fit`` reads (as ``sunbench export`` writes it): of a
+    cmos run true angles and spot centres (``fit cmos``), of a qd run the four currents and the temperature of
+    every reading, dark ones included (``fit qd``, README "QD bench data CSV")."""
     run = catalogue.run(run_id)
-    try:
-        data = bench_data(catalogue, catalogue.lineage(run_id), sensor_id=run["sensor_id"])
-    except InsufficientDataError as exc:
-        raise HTTPException(404, str(exc)) from None
-    with tempfile.TemporaryDirectory() as folder:  # the writer wants a path; one writer, one format
+    with tempfile.TemporaryDirectory() as folder:  # the writer wants a path; one writer per format
         path = Path(folder) / "data.csv"
-        write_bench_csv(path, data)
+        try:
+            family(run["family"]).export_csv(catalogue, catalogue.lineage(run_id), path, run["sensor_id"])
+        except InsufficientDataError as exc:
+            raise HTTPException(404, str(exc)) from None
         text = path.read_text()
     return PlainTextResponse(text, media_type="text/csv", headers=_attachment(f"run-{run_id}-data.csv"))
 
@@ -63,10 +62,13 @@ def download_calibration_json(run_id: RunId, method: str, catalogue: CatalogueDe
 @router.get("/calibrations/{run_id}/{method}.h", response_class=PlainTextResponse, summary="Calibration as C header",
             responses={200: {"content": {"text/x-c": {}}}})
 def download_calibration_header(run_id: RunId, method: str, catalogue: CatalogueDep):
-    """A C header defining ``sunbench_sun_direction(x_px, y_px, &zenith, &azimuth)`` for the flight code."""
+    """A C header defining ``sunbench_sun_direction(x_px, y_px, &zenith, &azimuth)`` for the flight code (of a QD
+    calibration ``sunbench_qd_sun_direction(currents_a, temperature_c, &zenith, &azimuth)``)."""
     document = _calibration_document(catalogue, run_id, method)
     try:
-        text = header_from_document(document)
+        text = family(document.get("family") or "cmos").c_header(document)
     except TypeError as exc:  # a method without a C export
         raise HTTPException(404, str(exc)) from None
+    except CalibrationError as exc:  # a document it cannot export (a non-finite value …)
+        raise HTTPException(409, str(exc)) from None
     return PlainTextResponse(text, media_type="text/x-c", headers=_attachment(f"run-{run_id}-{method}.h"))

@@ -15,6 +15,8 @@ from fastapi import APIRouter, FastAPI, HTTPException, Request
 from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.staticfiles import StaticFiles
 
+from ..family import bench_info
+
 STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
 
 LAYOUT = Path(__file__).resolve().parent.parent / "templates" / "layout.html"
@@ -70,22 +72,34 @@ def bench_banner(bench: dict | None) -> str:
             f"<b>Simulated bench</b>: nothing real moves, lights or measures; {html.escape(pace)}.</p>\n")
 
 
+def bench_attributes(bench: dict | None) -> str:
+    """The bench's sensor family on the page's <body> (``data-family``, ``data-plans``, ``data-frames``), so the
+    launcher offers the family's plans and the live pages show its readings before any API call (no token)."""
+    if not bench or not bench.get("family"):
+        return ""
+    values = {"family": bench["family"], "plans": " ".join(bench.get("plans") or ()),
+              "frames": "true" if bench.get("has_frames") else "false"}
+    return "".join(f' data-{name}="{html.escape(value, quote=True)}"' for name, value in values.items())
+
+
 def render_page(path: str, bench: dict | None = None) -> str:
-    """The page at `path`: its <main> in the layout, its own link marked, its scripts in the head, and the
-    simulated bench's banner when `bench` (its :meth:`~bench.service.BenchService.bench_info`) says so."""
+    """The page at `path`: its <main> in the layout, its own link marked, its scripts in the head, the simulated
+    bench's banner when `bench` (its :meth:`~bench.service.BenchService.bench_info` with its family,
+    :func:`web.family.bench_info`) says so, and the bench's family on its <body>."""
     name = PAGES[path].removesuffix(".html")
     scripts = ('  <script src="/static/plotly.min.js"></script>\n' if path in PLOTS else "")
     scripts += f'  <script type="module" src="/static/{name}.js"></script>\n'
     main = (STATIC_DIR / PAGES[path]).read_text(encoding="utf-8").split("\n", 1)[1]  # drop the first comment line
     page = LAYOUT.read_text(encoding="utf-8").format(title=TITLES[path], scripts=scripts, main=main,
-                                                     banner=bench_banner(bench))
+                                                     banner=bench_banner(bench),
+                                                     bench_attributes=bench_attributes(bench))
     return page.replace(f'<a href="{path}">', f'<a href="{path}" class="here">', 1)
 
 
 def _page_route(path: str):
     def page(request: Request):
-        info = getattr(request.app.state.service, "bench_info", None)
-        return HTMLResponse(render_page(path, info() if info else None), headers={"Cache-Control": "no-cache"})
+        return HTMLResponse(render_page(path, bench_info(request.app.state.service)),
+                            headers={"Cache-Control": "no-cache"})
     page.__name__ = f"page_{PAGES[path].removesuffix('.html')}"
     return page
 

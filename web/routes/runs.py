@@ -4,11 +4,10 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Depends, status
 
-from bench.results import point_means
+from bench.results import point_means, point_summaries
 
 from ..deps import READ, AfterId, CampaignFilter, CatalogueDep, RunId, ServiceDep
-from ..schemas import (CalibrationsPublic, Message, PhysicalPlanPublic, PointsPublic, RunLogPublic, RunPublic,
-                       RunsPublic, RunValuesPublic)
+from ..schemas import CalibrationsPublic, Message, PointsPublic, RunLogPublic, RunPublic, RunsPublic, RunValuesPublic
 from ..security import require_token
 
 router = APIRouter(prefix="/api/runs", tags=["runs"], dependencies=READ,  # resuming needs the token too
@@ -60,8 +59,10 @@ def read_run(run_id: RunId, catalogue: CatalogueDep):
 
 @router.get("/{run_id}/points", response_model=PointsPublic, summary="Points of a run")
 def read_points(run_id: RunId, catalogue: CatalogueDep):
-    """The run's points in recording order, each with the mean spot of its good readings."""
-    points = point_means(catalogue, run_id)
+    """The run's points in recording order, each with the mean spot of its good readings (a cmos run's) and what
+    its family shows of its readings live (`summary`: its spots, or its currents …)."""
+    summaries = point_summaries(catalogue, run_id)
+    points = [{**p, "summary": summaries.get(p["id"])} for p in point_means(catalogue, run_id)]
     return PointsPublic(run_id=run_id, data=points, count=len(points))
 
 

@@ -6,7 +6,10 @@ import cv2
 import numpy as np
 from fastapi import APIRouter, HTTPException, Response
 
+from bench.families.cmos import FULL_SCALE_DN
+
 from ..deps import READ, ServiceDep
+from ..family import family_info
 from ..schemas import SpotPublic, StatusPublic
 
 router = APIRouter(prefix="/api", tags=["status"], dependencies=READ)
@@ -24,8 +27,10 @@ def frame_png(frame: np.ndarray, full_scale_dn: float) -> bytes:
 @router.get("/status", response_model=StatusPublic, summary="Cached bench status")
 async def read_status(service: ServiceDep):
     """Table, source, sensor and engine as last seen; refreshed in the background, so this never waits
-    (hence async: it needs no worker thread)."""
-    return service.status()
+    (hence async: it needs no worker thread). `bench` says what the bench is: simulated or not, and its sensor
+    family with the campaign plans it runs."""
+    status = service.status()
+    return {**status, "bench": {**(status.get("bench") or {}), **family_info(service)}}
 
 
 @router.get("/frame.png", summary="Latest frame as a PNG", response_class=Response,
@@ -35,7 +40,7 @@ def read_frame_png(service: ServiceDep):
     frame, _ = service.latest_frame()
     if frame is None:
         raise HTTPException(404, "no frame yet: open the shutter (or start a run) first")
-    return Response(frame_png(frame, service.engine.full_scale_dn), media_type="image/png",
+    return Response(frame_png(frame, FULL_SCALE_DN), media_type="image/png",
                     headers={"Cache-Control": "no-store"})
 
 

@@ -1,5 +1,16 @@
-// Bench page: cached status, manual commands, the latest frame with its spot marked.
-import { $, api, drawLatestFrame, fmt, initTokenForm, report, say } from "./common.js";
+// Bench page: cached status, manual commands, the latest frame with its spot marked (a sensor that takes frames;
+// a photodiode's currents are in the status instead).
+import { $, amps, api, drawLatestFrame, fmt, initTokenForm, report, say } from "./common.js";
+
+const FRAMES = document.body.dataset.frames !== "false";  // the bench's sensor takes frames (web/routes/pages.py)
+
+// the sensor's state in words: its temperature, and its exposure (a camera) or its currents (a photodiode)
+function sensorText(sensor) {
+  if (!sensor) return "–";
+  const what = sensor.currents_a ? `currents ${sensor.currents_a.map((c) => amps(c)).join(", ")}`
+    : `exposure ${fmt(sensor.exposure_ms, 2)} ms`;
+  return `${sensor.family ? `${sensor.family}: ` : ""}${fmt(sensor.temperature_c, 1)} °C, ${what}`;
+}
 
 let status = null;
 
@@ -18,7 +29,7 @@ async function refreshStatus() {
   $("#s-moving").textContent = table ? (table.moving ? "moving" : "still") : "–";
   $("#s-lamp").textContent = source ? `${source.lamp_on ? "on" : "off"}${source.lamp_on && !source.warm ? " (warming up)" : ""}${source.fault ? " FAULT" : ""}` : "–";
   $("#s-shutter").textContent = source ? (source.shutter_open ? "open" : "closed") : "–";
-  $("#s-sensor").textContent = sensor ? `${fmt(sensor.temperature_c, 1)} °C, exposure ${fmt(sensor.exposure_ms, 2)} ms` : "–";
+  $("#s-sensor").textContent = sensorText(sensor);
   $("#s-updated").textContent = (status.error ? `ERROR ${status.error} · ` : "") + (status.updated_utc ?? "–");
   followState(engine);
   const form = $("#jog-form");
@@ -57,6 +68,7 @@ function jog(azimuth_deg, zenith_deg) {
 }
 
 async function refreshFrame() {
+  if (!FRAMES) return;
   try {
     await drawLatestFrame($("#frame"), $("#spot-text"));
   } catch (err) {
@@ -65,6 +77,7 @@ async function refreshFrame() {
 }
 
 function init() {
+  $("#frame-section").hidden = !FRAMES;
   initTokenForm(() => { refreshStatus(); refreshFrame(); });
   $("#lamp-on").onclick = () => command("/api/source/lamp", { on: true }, "lamp on");
   $("#lamp-off").onclick = () => command("/api/source/lamp", { on: false }, "lamp to standby");

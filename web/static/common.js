@@ -59,6 +59,15 @@ export function el(tag, attrs = {}, ...children) {
 export const $ = (sel) => document.querySelector(sel);
 export const fmt = (v, digits = 3) => (v === null || v === undefined || Number.isNaN(v) ? "–" : Number(v).toFixed(digits));
 
+// a current in words with its SI prefix: "1.062 µA", "308.7 pA"
+const PREFIXES = [[1e-3, "mA"], [1e-6, "µA"], [1e-9, "nA"], [1e-12, "pA"], [1e-15, "fA"]];
+export function amps(v, digits = 4) {
+  if (v === null || v === undefined || Number.isNaN(v)) return "–";
+  const size = Math.abs(v);
+  const [scale, unit] = PREFIXES.find(([s]) => size >= s) ?? (size === 0 ? [1, "A"] : PREFIXES[PREFIXES.length - 1]);
+  return `${Number((v / scale).toPrecision(digits))} ${unit}`;
+}
+
 export function duration(s) {
   if (s === null || s === undefined) return "–";
   s = Math.round(s);

@@ -28,13 +28,14 @@ async function showFleet(id) {
       + "Resuming goes on with them, each from its last run's points, asking for every sensor to mount. ";
   }
   $("#fleet tbody").replaceChildren(...fleet.data.map((f) => {
-    const held = f.metrics?.heldout || {};
+    const held = f.metrics?.heldout || {};  // a QD method's figures are angular errors: rms_deg, max_deg
     return el("tr", {},
       el("td", {}, String(f.position + 1)), el("td", {}, f.sensor_id), el("td", {}, f.status + (f.run_status && f.run_status !== f.status ? ` (${f.run_status})` : "")),
       el("td", {}, f.run_id ? el("a", { href: `/results?run=${f.run_id}` }, `run ${f.run_id}`) : "–"),
       el("td", {}, f.run_id ? `${f.n_points_recorded ?? 0} / ${bound}${f.n_points_planned ?? "–"}` : "–"),
-      el("td", {}, f.method ?? "–"), el("td", {}, fmt(held.rms_vector_deg)), el("td", {}, fmt(held.p95_vector_deg)),
-      el("td", {}, fmt(held.max_vector_deg)), el("td", {}, f.exit_reason ?? f.metrics?.error ?? ""));
+      el("td", {}, f.method ?? "–"), el("td", {}, fmt(held.rms_vector_deg ?? held.rms_deg)),
+      el("td", {}, fmt(held.p95_vector_deg)), el("td", {}, fmt(held.max_vector_deg ?? held.max_deg)),
+      el("td", {}, f.exit_reason ?? f.metrics?.error ?? ""));
   }));
 }
 

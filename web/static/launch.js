@@ -1,9 +1,12 @@
-// Campaign launcher: the plan (seed 003 or physical) and its procedure's fields, a dry run (preflight), then start.
+// Campaign launcher: the plan (seed 003 or physical on a CMOS bench, qd-grid or qd-dark on a QD one: the plans of
+// the bench's sensor family only) and its procedure's fields, a dry run (preflight), then start.
 import { $, api, duration, el, initTokenForm, report, say } from "./common.js";
 
 const form = $("#campaign-form");
 const list = (text) => text.split(/[,;\s]+/).map((s) => s.trim()).filter(Boolean);
-const fieldset = (plan) => form.querySelector(`fieldset[data-plan="${CSS.escape(String(plan))}"]`);
+// a plan's fieldset, by the plan ("qd-grid") or by the campaign's field it fills ("qd_grid")
+const fieldset = (plan) => form.querySelector(`fieldset[data-plan="${CSS.escape(String(plan))}"]`)
+  || form.querySelector(`fieldset[data-field="${CSS.escape(String(plan))}"]`);
 const field = (name) => form.querySelector(`:scope > label [name="${CSS.escape(name)}"]`);  // not a procedure's
 
 // the procedure of one fieldset as the API takes it: its inputs are named after the model's fields ("a.b" for a
@@ -35,7 +38,7 @@ function campaign() {
     plan,
     sensors: list(field("sensors").value),
     frames: field("frames").value,
-    [plan]: procedure(plan),
+    [fieldset(plan).dataset.field ?? plan]: procedure(plan),
   };
   if (field("operator").value.trim()) body.operator = field("operator").value.trim();
   return body;
@@ -121,7 +124,7 @@ function showDryRun(r) {
   $("#d-wall").textContent = wallText(r, bound);
   const wall = r.wall_duration_s === null ? "no wall time (time scale 0)"
     : `${bound || "about "}${minutes(r.wall_duration_s)} of wall time`;
-  $("#d-summary").textContent = `${bound}${r.points} points, ${bound}${r.frames} frames, ${bound}${r.moves} moves per `
+  $("#d-summary").textContent = `${bound}${r.points} points, ${bound}${r.frames} ${READINGS}, ${bound}${r.moves} moves per `
     + `sensor × ${r.sensors} sensor(s); ${bound || "about "}${minutes(r.duration_s)} of bench time in all`
     + (r.warmup_s > 0 ? ` (of which ${minutes(r.warmup_s)} lamp warm-up)` : "") + `, ${wall}`;
   $("#d-bound").textContent = r.upper_bound
@@ -169,7 +172,27 @@ async function start(e) {
   }
 }
 
+// what one reading of the bench's sensor is: a frame (an image sensor), or a reading (a photodiode's currents)
+const READINGS = document.body.dataset.frames === "false" ? "readings" : "frames";
+
+// the plans of the bench's sensor family (the page's data-plans, web/routes/pages.py): the others are not offered
+function offerFamilyPlans() {
+  const offered = (document.body.dataset.plans ?? "").split(" ").filter(Boolean);
+  if (!offered.length) return;  // the server did not say: every plan stays, preflight refuses a foreign one
+  const select = field("plan");
+  for (const option of [...select.options]) {
+    if (!offered.includes(option.value)) {
+      option.remove();
+      fieldset(option.value)?.remove();
+    }
+  }
+  if (!select.value && select.options.length) select.value = select.options[0].value;
+  for (const label of form.querySelectorAll("label[data-frames]")) label.hidden = READINGS !== "frames";
+  $("#d-frames-label").textContent = `${READINGS[0].toUpperCase()}${READINGS.slice(1)} per sensor`;
+}
+
 initTokenForm();
+offerFamilyPlans();
 field("plan").addEventListener("change", showPlan);
 for (const event of ["input", "change"]) form.addEventListener(event, () => { startKey = newKey(); });
 showPlan();  // a browser may restore another choice than the page's on reload

@@ -1,4 +1,6 @@
-// Results of a run: the metrics of every method (table 4.1) and seed 003's figures 4.4 and 4.6–4.9, and of the
+// Results of a run, in the results view of its sensor family (GET /api/runs/{id}: `results_view`): a QD run's is
+// results-qd.js; a CMOS run's is this module's.
+// The CMOS view: the metrics of every method (table 4.1) and seed 003's figures 4.4 and 4.6–4.9, and of the
 // calibration shown its quality (warnings, rejected frames) and its 1σ pointing uncertainty over the field; of a
 // physical-plan run, its stopping rule's decision after each batch (GET /api/runs/{id}/values).
 // The radius and the fitted directions come from GET /api/runs/{id}/fit (computed by the calibration code); the
@@ -8,6 +10,7 @@ import {
   $, api, download, el, fmt, initTokenForm, leftOutTrace, matrixLayout, PLOT_CONFIG, plotLayout, query, report, say,
   splitExcluded, stopsEarly, unsafeText,
 } from "./common.js";
+import { showQdRun } from "./results-qd.js";
 
 const runParam = query("run");
 
@@ -33,9 +36,10 @@ async function listRuns() {
   const runs = (await api("/api/runs")).data.slice().reverse();
   $("#runs-table tbody").replaceChildren(...runs.map((r) => el("tr", {},
     el("td", {}, el("a", { href: `/results?run=${r.id}` }, `run ${r.id}`)), el("td", {}, r.sensor_id),
+    el("td", {}, r.family ?? "–"),
     el("td", {}, r.campaign_id ? el("a", { href: `/fleet?campaign=${r.campaign_id}` }, String(r.campaign_id)) : "–"),
     el("td", {}, r.plan_name), el("td", {}, r.status), el("td", {}, pointsText(r)), el("td", {}, r.ended_utc ?? "–"))));
-  if (!runs.length) $("#runs-table tbody").append(el("tr", {}, el("td", { colspan: 7 }, "no run recorded yet")));
+  if (!runs.length) $("#runs-table tbody").append(el("tr", {}, el("td", { colspan: 8 }, "no run recorded yet")));
 }
 
 function metricsTable(calibrations) {
@@ -379,20 +383,30 @@ async function showMethod(runId, points, method, sensor, calibrations) {
   if (fit) for (const plot of FIT_PLOTS) plot(fit);
 }
 
-async function showRun(runId) {
-  $("#run-summary").hidden = false;
-  const [run, points, calibrations, values, runs] = await Promise.all([
-    api(`/api/runs/${runId}`), api(`/api/runs/${runId}/points`), api(`/api/runs/${runId}/calibrations`),
-    api(`/api/runs/${runId}/values`), api("/api/runs")]);
-  // the detector's size for the spot map's axes: the bench's sensor now, if it answers (else the axes fit the
-  // points); a run recorded with another sensor than today's still has its points drawn where they were
-  const status = await api("/api/status").catch(() => null);
-  $("#run-heading").textContent = `Run ${run.id} · sensor ${run.sensor_id}`;
+// what every family's run shows first: who, what and how it ended, whether to resume it, where it came from
+function runHeader(run, runs) {
+  $("#run-heading").textContent = `Run ${run.id} · sensor ${run.sensor_id} (${run.family ?? "cmos"})`;
   $("#run-info").textContent = `${run.plan_name}, ${run.status}${run.exit_reason ? ` (${run.exit_reason})` : ""}, `
     + `${pointsText(run)} points, ${run.started_utc ?? "–"} → ${run.ended_utc ?? "–"}`;
   unsafeBox(run);
-  resumeBox(run, runs.data);
+  resumeBox(run, runs);
   provenanceSection(run);
+}
+
+async function showRun(runId) {
+  $("#run-summary").hidden = false;
+  const [run, runs] = await Promise.all([api(`/api/runs/${runId}`), api("/api/runs")]);
+  runHeader(run, runs.data);
+  // the results view of the run's family
+  if (run.results_view === "qd") {
+    await showQdRun(run, { downloads: (method) => downloads(run.id, method) });
+    return;
+  }
+  const [points, calibrations, values] = await Promise.all([
+    api(`/api/runs/${runId}/points`), api(`/api/runs/${runId}/calibrations`), api(`/api/runs/${runId}/values`)]);
+  // the detector's size for the spot map's axes: the bench's sensor now, if it answers (else the axes fit the
+  // points); a run recorded with another sensor than today's still has its points drawn where they were
+  const status = await api("/api/status").catch(() => null);
   stoppingSection(values.physical);
   const usable = calibrations.data.filter((c) => !c.metrics?.error);
   const chosen = usable.find((c) => c.chosen) || usable[0];

@@ -1,10 +1,13 @@
 // Live run: progress, ETA, each point as it lands (stage, angles, exposure, its spots, the latest frame), the spot
 // map and a log line per point and per stage result, from the server-sent events; pause / resume / abort, each
 // offered only when the engine's state allows it; a run that ended unsafe, said first.
+// What a point shows is what its readings are (the `point` event's fields, the family's summary): spots of a frame
+// (cmos), or quadrant currents (qd: the latest currents and a plot of every point's, instead of the frame and
+// the spot map). The page starts with its bench's kind (<body data-frames>) and follows the events.
 /* global Plotly */
 import {
-  $, api, drawLatestFrame, duration, el, fmt, getToken, initTokenForm, LEFT_OUT_MARKER, matrixLayout, PLOT_CONFIG,
-  query, report, say, stopsEarly, unsafeText,
+  $, amps, api, drawLatestFrame, duration, el, fmt, getToken, initTokenForm, LEFT_OUT_MARKER, matrixLayout, PLOT_CONFIG,
+  plotLayout, query, report, say, stopsEarly, unsafeText,
 } from "./common.js";
 
 const EDGE = "clipped at the detector's edge: left out of the fit";
@@ -20,11 +23,52 @@ let drawPending = false;
 let detector = null; // the detector's size (width_px, height_px), from the status
 let engineState = null;
 
+// -- what a reading is: "spots" (a frame's) or "currents" (a photodiode's) ----------------------------------------
+let reading = document.body.dataset.frames === "false" ? "currents" : "spots";
+const QUADRANTS = ["Q1", "Q2", "Q3", "Q4"];
+const currents = { index: [], q: [[], [], [], []], sum: [], text: [] };
+
+function showReading(kind) {
+  if (kind === reading && document.querySelector(`[data-reading="${kind}"]:not([hidden])`)) return;
+  reading = kind;
+  for (const node of document.querySelectorAll("[data-reading]")) node.hidden = node.dataset.reading !== kind;
+  draw();
+}
+
+function addCurrents(index, values, label) {
+  if (!Array.isArray(values)) return;
+  currents.index.push(index);
+  values.forEach((v, k) => currents.q[k].push(v));
+  currents.sum.push(values.reduce((a, b) => a + b, 0));
+  currents.text.push(label);
+}
+
+const currentsText = (values) => (Array.isArray(values)
+  ? `${values.map((v, k) => `${QUADRANTS[k]} ${amps(v)}`).join(", ")}; sum ${amps(values.reduce((a, b) => a + b, 0))}`
+  : "no reading");
+
+function drawCurrents() {
+  const layout = plotLayout(runId ? `quadrant currents of run ${runId}` : "quadrant currents", "point",
+    "current [A], dark current included");
+  layout.yaxis = { ...layout.yaxis, type: "log", exponentformat: "SI" };
+  layout.datarevision = `${runId}:${currents.index.length}`;
+  Plotly.react("currents-plot", [...QUADRANTS.map((name, k) => ({
+    type: "scatter", mode: "lines+markers", name, x: currents.index, y: currents.q[k], text: currents.text,
+    marker: { size: 3 }, line: { width: 1 }, hovertemplate: `${name} %{y:.4s}A<br>%{text}<extra></extra>`,
+  })), { type: "scatter", mode: "lines", name: "sum", x: currents.index, y: currents.sum, text: currents.text,
+    line: { width: 1.5, color: "#333", dash: "dot" }, hovertemplate: "sum %{y:.4s}A<br>%{text}<extra></extra>" }],
+  layout, PLOT_CONFIG);
+}
+
 function draw() {
   if (drawPending) return;
   drawPending = true;
   requestAnimationFrame(() => {
     drawPending = false;
+    if (reading === "currents") {
+      drawCurrents();
+      return;
+    }
     Plotly.react("spot-plot", [{
       type: "scatter",
       mode: "markers", name: "spots", x: spots.x, y: spots.y, text: spots.text,
@@ -44,6 +88,7 @@ function draw() {
 function resetSpots() {
   for (const k of Object.keys(spots)) spots[k] = [];
   for (const k of Object.keys(clipped)) clipped[k] = [];
+  Object.assign(currents, { index: [], q: [[], [], [], []], sum: [], text: [] });
   seenKeys.clear();
   draw();
 }
@@ -103,7 +148,7 @@ async function readRun(id) {
   shown.plan = run.plan_name;
   if (TERMINAL.has(run.status)) shown.ended = run.status;
   const ended = TERMINAL.has(run.status) && engineState === "idle" ? ` · ${run.status}` : "";
-  $("#run-title").textContent = `${id} · sensor ${run.sensor_id} · plan ${run.plan_name}${ended}`;
+  $("#run-title").textContent = `${id} · sensor ${run.sensor_id} (${run.family ?? "cmos"}) · plan ${run.plan_name}${ended}`;
   if (unsafeText(run)) showUnsafe(id, unsafeText(run));
   renderProgress();
   return run;
@@ -144,6 +189,7 @@ const spotText = (x, y) => `(${fmt(x, 2)}, ${fmt(y, 2)}) px`;
 
 function pointLine(p, edgeFlags) {
   const where = `table azimuth ${fmt(p.azimuth_deg, 1)}°, zenith stage ${fmt(p.zenith_stage_deg, 2)}°`;
+  if ("currents_a" in p) return `${p.key} (${p.stage}): ${where} → ${currentsText(p.currents_a)}`;
   const found = p.spots.length ? p.spots.map(([x, y], i) => spotText(x, y) + (edgeFlags[i] ? " clipped at the edge" : ""))
     .join(", ") : "no spot";
   return `${p.key} (${p.stage}): ${where} → ${found}`;
@@ -156,6 +202,12 @@ function showPoint(d) {
   $("#n-table").textContent = `azimuth ${fmt(d.azimuth_deg, 3)}°, zenith stage ${fmt(d.zenith_stage_deg, 3)}°`;
   $("#n-body").textContent = d.zenith_deg === undefined ? "–"
     : `zenith ${fmt(d.zenith_deg, 3)}°, azimuth ${fmt(d.azimuth_body_deg, 3)}°`;
+  if ("currents_a" in d) {
+    $("#n-currents").textContent = currentsText(d.currents_a);
+    $("#n-temperature").textContent = d.temperature_c === null || d.temperature_c === undefined ? "–"
+      : `${fmt(d.temperature_c, 2)} °C`;
+    return;
+  }
   $("#n-exposure").textContent = d.exposure_ms === null || d.exposure_ms === undefined ? "–" : `${fmt(d.exposure_ms, 3)} ms`;
   const spotsText = (d.spots || []).map(([x, y], i) => spotText(x, y) + (edge[i] ? ` (${EDGE})` : ""));
   $("#n-spots").textContent = spotsText.length
@@ -167,6 +219,7 @@ function showPoint(d) {
 let frameBusy = false, frameAgain = false;
 
 async function refreshFrame() {
+  if (reading !== "spots") return;  // a photodiode has no frame
   if (frameBusy) { frameAgain = true; return; }
   frameBusy = true;
   try { await drawLatestFrame($("#frame"), $("#frame-text")); } catch (_) { /* the status read reports a refusal */ }
@@ -239,8 +292,18 @@ async function catchUp() {
     if (runId !== id) return; // another run started while these were on their way: its events own the page
     // points that arrived as events meanwhile are on the map already
     const earlier = points.data.filter((p) => !seenKeys.has(p.key));
-    for (const p of earlier) addSpot(p.x_px, p.y_px, p.zenith_stage_deg, p.key, Boolean(p.excluded));
+    if (earlier.some((p) => p.summary && "currents_a" in p.summary)) showReading("currents");
+    points.data.forEach((p, i) => {
+      if (seenKeys.has(p.key)) return;
+      if (p.summary && "currents_a" in p.summary) addCurrents(i + 1, p.summary.currents_a, `${p.key} (${p.stage})`);
+      else addSpot(p.x_px, p.y_px, p.zenith_stage_deg, p.key, Boolean(p.excluded));
+    });
     draw();
+    // a photodiode's latest currents, until the next point's event says newer ones
+    const last = points.data.at(-1);
+    if (last?.summary && "currents_a" in last.summary && !seenKeys.size) {
+      showPoint({ ...last, ...last.summary, index: points.data.length, total: e.total });
+    }
     // what happened before the page joined, below what it saw live (the list is newest first)
     const list = $("#log");
     const live = [...list.children];
@@ -248,7 +311,8 @@ async function catchUp() {
     const entries = [...runLog.data.map((entry) => [new Date(entry.t_utc), entry.kind, entry.message]),
       ...earlier.map((p) => [new Date(p.completed_utc), "point", `${p.key} (${p.stage}): table azimuth `
         + `${fmt(p.azimuth_deg, 1)}°, zenith stage ${fmt(p.zenith_stage_deg, 2)}° → `
-        + (p.x_px === null ? "no spot" : spotText(p.x_px, p.y_px) + (p.excluded ? ` (${p.excluded})` : ""))])];
+        + (p.summary && "currents_a" in p.summary ? currentsText(p.summary.currents_a)
+          : p.x_px === null ? "no spot" : spotText(p.x_px, p.y_px) + (p.excluded ? ` (${p.excluded})` : ""))])];
     entries.push(...recordedResults(values.values, points.data));
     entries.sort((a, b) => a[0] - b[0]);
     for (const [when, kind, message] of entries) {
@@ -273,8 +337,8 @@ async function showLastRun() {
   if (!run || runId) return;
   Object.assign(shown, { plan: run.plan_name, ended: run.status });
   progress(run.n_points_recorded, run.n_points_planned, null);
-  $("#run-title").textContent = `none running · last run ${run.id} · sensor ${run.sensor_id} · plan ${run.plan_name} `
-    + `· ${run.status}`;
+  $("#run-title").textContent = `none running · last run ${run.id} · sensor ${run.sensor_id} (${run.family ?? "cmos"}) · `
+    + `plan ${run.plan_name} · ${run.status}`;
   finishedLink(run.id);
   if (unsafeText(run)) showUnsafe(run.id, unsafeText(run));
 }
@@ -292,10 +356,16 @@ const HANDLERS = {
     progress(d.index, d.total, d.eta_s);
     seenKeys.add(d.key);
     const edge = d.spots_clipped || [];
-    (d.spots || []).forEach(([x, y], i) => addSpot(x, y, d.zenith_stage_deg, d.key, Boolean(edge[i])));
+    if ("currents_a" in d) {
+      showReading("currents");
+      addCurrents(d.index, d.currents_a, `${d.key} (${d.stage})`);
+    } else {
+      if ("spots" in d) showReading("spots");
+      (d.spots || []).forEach(([x, y], i) => addSpot(x, y, d.zenith_stage_deg, d.key, Boolean(edge[i])));
+    }
     draw();
     showPoint(d);
-    log("point", `${d.index}/${d.total ?? "–"} ${pointLine({ ...d, spots: d.spots || [] }, edge)}`);
+    log("point", `${d.index}/${d.total ?? "–"} ${pointLine("currents_a" in d ? d : { ...d, spots: d.spots || [] }, edge)}`);
   },
   record: (d) => logResult(recordText(d.key, d.value)),
   log: (d) => log("log", d.message),
@@ -402,6 +472,7 @@ $("#mount-confirm").onclick = confirmMount;
 $("#resume-run").onclick = resumeRun;
 $("#resume").onclick = () => control("resume");
 $("#abort").onclick = () => { if (confirm("Abort the run? Its recorded points stay.")) control("abort"); };
+showReading(reading);
 draw();
 connect();
 setInterval(() => { if (!document.hidden) catchUp(); }, 10000);

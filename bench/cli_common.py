@@ -1,0 +1,138 @@
+"""What every `sunbench` command module shares: the consoles, the turning of bad input into one stderr line and
+exit code 2, the metrics table, and the options several commands take (`--bench`, `--catalogue`,
+`--time-scale`).
+
+The command modules (`bench/cli.py`, `bench/cli_runs.py`, `web/cli.py`) import this and nothing of each other;
+the `cli/` package, the composition root, builds the app from them.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import sys
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+from calibration.errors import CalibrationError
+from calibration.evaluation import MethodReport
+from drivers.errors import DeviceError
+
+from .benchfile import BenchFileError
+from .campaign import CampaignFileError
+from .catalogue import CatalogueError
+from .datafile import DataFileError
+from .runner import PreflightRefused, ResumeRefused
+
+out = Console(width=None if sys.stdout.isatty() else 150)  # a pipe or a test gets whole tables
+err = Console(stderr=True)
+
+# an empty XDG_DATA_HOME counts as unset, as the XDG spec says
+DEFAULT_CATALOGUE = (Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share")
+                     / "sunbench" / "catalogue.sqlite")
+
+CatalogueOption = typer.Option(None, "--catalogue", envvar="SUNBENCH_CATALOGUE",
+                               help=f"SQLite catalogue (default: {DEFAULT_CATALOGUE}).")
+BenchOption = typer.Option(None, "--bench", "-b", help="Bench file (default: the simulated bench).")
+TimeScaleOption = typer.Option(None, "--time-scale", min=0.0, max=1000.0,
+                               help="Simulated clock (0 = instant, at most 1000× real time).")
+#: Catalogue ids are SQLite integers: a larger number is refused as bad input, not a traceback.
+MAX_ID = 2**63 - 1
+
+
+def open_catalogue(path: Optional[Path], *, readonly: bool = False):
+    """The catalogue at `path` (default: DEFAULT_CATALOGUE)."""
+    from .catalogue import Catalogue
+    return Catalogue(path or DEFAULT_CATALOGUE, readonly=readonly)
+
+
+def user_errors(command):
+    """Turn the typed errors of bad input into one stderr line and exit code 2."""
+
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except (DataFileError, CalibrationError, BenchFileError, CampaignFileError, CatalogueError,
+                PreflightRefused, ResumeRefused) as exc:
+            err.print(f"[bold red]error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
+            raise typer.Exit(2) from None
+        except DeviceError as exc:  # a device that does not answer as it should: not the user's input
+            err.print(f"[bold red]device error:[/] {escape(str(exc))}", highlight=False, soft_wrap=True)
+            raise typer.Exit(1) from None
+        except OSError as exc:
+            err.print(f"[bold red]error:[/] {escape(str(exc.filename or ''))}: {escape(str(exc.strerror))}",
+                      highlight=False, soft_wrap=True)
+            raise typer.Exit(2) from None
+
+    return wrapper
+
+
+def fmt(value: float, digits: int = 3) -> str:
+    return "—" if value != value else f"{value:.{digits}f}"  # NaN → dash
+
+
+def metrics_table(reports: list[MethodReport], chosen: str | None) -> Table:
+    """Seed 003 Table 4.1 columns for every method: held out (the worse of two schemes), and more."""
+    notes: list[str] = []
+    table = Table(title="Accuracy held out [°] — the worse of leave-one-azimuth-out and leave-one-zenith-ring-out; "
+                        "* = chosen", title_justify="left")
+    table.add_column("method", no_wrap=True)
+    for name in ("RMS zenith", "RMS azimuth", "RMS vector", "95 % (2×RMS)", "max vector", "azimuth out",
+                 "ring out", "RMS at nodes", "χ²/dof"):
+        table.add_column(name, justify="right", max_width=9)
+    for r in reports:
+        label = r.method + (" *" if r.method == chosen else "")
+        if r.calibration is None:
+            table.add_row(label, *["[dim]—[/]"] * 9)
+            notes.append(f"not fitted: {r.error}")
+            continue
+        h = r.heldout
+        row = [fmt(h.rms_zenith_deg, 4), fmt(h.rms_azimuth_deg, 4), fmt(h.rms_vector_deg, 4), fmt(h.bound95_deg, 4),
+               fmt(h.max_vector_deg, 4)] if h else ["—"] * 5
+        row += [fmt(r.heldout_azimuth.rms_vector_deg, 4) if r.heldout_azimuth else "—",
+                fmt(r.heldout_ring.rms_vector_deg, 4) if r.heldout_ring else "—"]
+        table.add_row(label, *row, fmt(r.fitted.rms_vector_deg, 4),
+                      fmt(r.chi2_dof, 1) if r.chi2_dof is not None else "—")
+        if r.error:
+            notes.append(f"{r.method}: {r.error}")
+    table.caption = "\n".join(notes) or None
+    table.caption_justify = "left"
+    return table
+
+
+def qd_metrics_table(reports, chosen: str | None) -> Table:
+    """Every QD method's angular error [°]: held out between the grid's nodes (what it is judged by), at them."""
+    notes: list[str] = []
+    table = Table(title="Accuracy [°] — held out: the worst, by max, of the off-node check points and the grid "
+                        "columns / rows left out; * = chosen", title_justify="left")
+    table.add_column("method", no_wrap=True)
+    for name in ("held-out max", "held-out RMS", "held-out p99", "scheme", "max by scheme", "max at nodes",
+                 "RMS at nodes", "χ²/dof"):
+        table.add_column(name, justify="left" if name in ("scheme", "max by scheme") else "right",
+                         no_wrap=name == "max by scheme")
+    for r in reports:
+        label = r.method + (" *" if r.method == chosen else "")
+        if r.model is None:
+            table.add_row(label, *["[dim]—[/]"] * 8)
+            notes.append(f"{r.method} not fitted: {r.error}")
+            continue
+        h, n = r.heldout, r.at_nodes
+        row = [fmt(h.max_deg, 4), fmt(h.rms_deg, 4), fmt(h.p99_deg, 4), r.heldout_scheme or "—"] if h else ["—"] * 4
+        row.append(" · ".join(f"{k} {fmt(v.max_deg, 4)}" for k, v in r.heldout_by_scheme.items()) or "—")
+        row += [fmt(n.max_deg, 4), fmt(n.rms_deg, 4)] if n else ["—"] * 2
+        row.append(fmt(r.chi2_dof, 1) if r.chi2_dof is not None else "—")
+        table.add_row(label, *row)
+        if h is not None and h.n_failed:
+            notes.append(f"{r.method}: no direction for {h.n_failed} of {h.n_points} held-out points (left out of "
+                         "its figures)")
+        if r.error:
+            notes.append(f"{r.method}: {r.error}")
+    table.caption = "\n".join(escape(n) for n in notes) or None
+    table.caption_justify = "left"
+    return table

@@ -1,0 +1,286 @@
+"""What a QD run's results look like: its quadrant currents, its dark-current fit, the angular error of a
+calibration over the field, and every method's figures — plain data for the dashboard's QD results view.
+
+Computed here, with the calibration core, so ``web/`` holds no science (as :mod:`bench.results` does for the
+CMOS family). Everything is read from the catalogue: the run's lineage (the readings its fit used, a resumed
+run's parent included) and the calibration documents stored at the run's end.
+
+The error map applies a stored document to the run's readings as the fit scored them
+(:func:`calibration.qd.evaluation.calibrate_qd`): the readings the document rejected (its ``rejected`` rows,
+``row`` = reading id) and those with a clipped channel left out, the document's dark model subtracted from
+each reading (seed 002 §2.1), the photocurrents of a direction averaged, then eq. 2.1 and the method
+(:func:`calibration.qd.document.angles_from_photocurrents`). So its largest and RMS error over the grid nodes
+are the document's ``at_nodes`` figures, and over the check points (never fitted) its held-out ``check``
+figures. The held-out figures of leaving grid lines out need a refit per fold and are not in the map.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+
+import numpy as np
+
+from calibration.errors import InsufficientDataError
+from calibration.qd.angles import angle_between_projections_deg, projection_angles, zenith_azimuth_from_projection
+from calibration.qd.dark import DarkModel, fit_dark, subtract_dark
+from calibration.qd.document import angles_from_photocurrents, validate_document
+
+from .families.qd import CHECK, DARK, SATURATED
+from .results import NoCalibration
+
+#: The family whose runs these views read
+FAMILY = "qd"
+
+#: Why a reading is left out of every QD fit (bench.families.qd.bench_data keeps ok readings only)
+SATURATED_REASON = "a quadrant reached full scale (its current is only a lower bound)"
+
+#: Temperatures the dark model's curve is drawn at
+CURVE_SAMPLES = 61
+
+
+class NotQdRun(ValueError):
+    """The run measured another family's sensor: its results have another view."""
+
+
+def _finite(value) -> float | None:
+    value = float(value)
+    return value if np.isfinite(value) else None
+
+
+def _qd_run(catalogue, run_id: int) -> dict:
+    run = catalogue.run(run_id)  # "no run N" first
+    family = run.get("family", "cmos")
+    if family != FAMILY:
+        raise NotQdRun(f"run {run_id} measured a {family} sensor, not a {FAMILY} one: its results have the "
+                       f"{family} view")
+    return run
+
+
+def _record(catalogue, run_id: int, method: str | None) -> dict:
+    """The calibration `method` of the run (its chosen one when None), the latest if fitted again."""
+    matches = [c for c in catalogue.calibrations(run_id) if (c["method"] == method if method else c["chosen"])]
+    if not matches:
+        raise NoCalibration(f"run {run_id} has no {method or 'chosen'} calibration")
+    return matches[-1]
+
+
+def _chosen_or_none(catalogue, run_id: int, method: str | None) -> dict | None:
+    try:
+        return _record(catalogue, run_id, method)
+    except NoCalibration:
+        if method:
+            raise
+        return None
+
+
+def rejected_rows(document: dict) -> dict[int, str]:
+    """The readings a QD calibration rejected, by reading id (its ``rejected`` rows), with the reason of each."""
+    out = {}
+    for entry in document.get("rejected") or []:
+        if isinstance(entry, dict) and isinstance(entry.get("row"), int):
+            out.setdefault(entry["row"], str(entry.get("reason") or "rejected as an outlier"))
+    return out
+
+
+def _readings_by_point(catalogue, run_ids) -> dict[int, list]:
+    by_point = defaultdict(list)
+    for reading in catalogue.readings(run_ids):
+        by_point[reading.point_id].append(reading)
+    return by_point
+
+
+def _true_angles(zenith_deg, azimuth_deg) -> tuple[float, float]:
+    alpha, beta = projection_angles(float(zenith_deg), float(azimuth_deg))
+    return float(alpha), float(beta)
+
+
+# --- the quadrant currents of every point -------------------------------------------------------------------
+def qd_currents(catalogue, run_id: int) -> dict:
+    """Every point of the run's lineage in recording order: its stage, its true direction (zenith, azimuth and
+    the projection angles α, β of seed 002 eq. 2.2; None at a dark point), and the mean raw current of each
+    quadrant (dark current included) over its readings without a clipped channel, their sum and the mean
+    temperature; `n_saturated` counts the readings with a clipped channel."""
+    _qd_run(catalogue, run_id)
+    lineage = catalogue.lineage(run_id)
+    readings = _readings_by_point(catalogue, lineage)
+    data = []
+    for index, point in enumerate(catalogue.points(lineage), start=1):
+        rows = readings.get(point["id"], [])
+        ok = [r for r in rows if r.ok]
+        currents = np.mean([r.values["currents_a"] for r in ok], axis=0) if ok else None
+        temperature = float(np.mean([r.values["temperature_c"] for r in ok])) if ok else None
+        dark = point["stage"] == DARK
+        alpha, beta = (None, None) if dark else _true_angles(point["zenith_deg"], point["azimuth_body_deg"])
+        data.append({"id": point["id"], "run_id": point["run_id"], "index": index, "key": point["key"],
+                     "stage": point["stage"], "zenith_deg": None if dark else point["zenith_deg"],
+                     "azimuth_deg": None if dark else point["azimuth_body_deg"], "alpha_deg": alpha, "beta_deg": beta,
+                     "currents_a": None if currents is None else [float(c) for c in currents],
+                     "sum_a": None if currents is None else float(np.sum(currents)), "temperature_c": temperature,
+                     "n_readings": len(rows), "n_ok": len(ok),
+                     "n_saturated": sum(1 for r in rows if r.status == SATURATED)})
+    return {"run_id": run_id, "data": data, "count": len(data)}
+
+
+# --- the dark current -----------------------------------------------------------------------------------------
+def _model_parts(model: DarkModel, document: dict) -> dict:
+    return {"model": model.kind, "t_ref_c": float(model.t_ref_c), "quadrants": document.get("quadrants") or [],
+            "residual_sd_a": [_finite(v) for v in model.residual_sd_a], "note": document.get("note"),
+            "temperature_range_c": document.get("temperature_range_c")}
+
+
+def qd_dark(catalogue, run_id: int, method: str | None = None) -> dict:
+    """The run's dark readings (shutter closed: each quadrant's current against the die's temperature) and the
+    dark model of seed 002 §2.1 drawn through them: the one of the calibration `method` (default the chosen
+    one), else — a dark sweep alone has no calibration — the model :func:`calibration.qd.dark.fit_dark` fits
+    to the readings here (`source` says which; None when there are too few). `curve` samples the model over
+    the temperatures of every reading of the run, light ones included (a model outside its dark readings'
+    range is extrapolated: `dark_range_c` against `light_range_c`)."""
+    _qd_run(catalogue, run_id)
+    lineage = catalogue.lineage(run_id)
+    record = _chosen_or_none(catalogue, run_id, method)
+    rejected = rejected_rows(record["document"]) if record else {}
+    rows = catalogue.readings(lineage)
+    dark_rows = [r for r in rows if r.stage == DARK]
+    readings = [{"reading_id": r.id, "key": r.key, "temperature_c": r.values.get("temperature_c"),
+                 "currents_a": r.values.get("currents_a"),
+                 "left_out": (SATURATED_REASON if r.status == SATURATED else
+                              r.status if not r.ok else rejected.get(r.id))}
+                for r in dark_rows]
+    used = [r for r in dark_rows if r.ok and r.id not in rejected]
+    light_t = [r.values["temperature_c"] for r in rows if r.ok and r.stage != DARK]
+    dark_t = [r.values["temperature_c"] for r in used]
+    model = parts = None
+    source = None
+    if record is not None:
+        document = record["document"]
+        validate_document(document)
+        model = DarkModel.from_dict(document["dark"])
+        parts, source = _model_parts(model, document["dark"]), "calibration"
+    elif used:
+        try:
+            fit = fit_dark(dark_t, [r.values["currents_a"] for r in used])
+        except InsufficientDataError:
+            fit = None
+        if fit is not None:
+            model, parts, source = fit.model, _model_parts(fit.model, fit.to_dict()), "readings"
+    curve = None
+    span = dark_t + light_t
+    if model is not None and model.kind != "none" and span:
+        low, high = min(span), max(span)
+        pad = max(0.05 * (high - low), 1.0)
+        t = np.linspace(low - pad, high + pad, CURVE_SAMPLES)
+        curve = {"temperature_c": [float(v) for v in t],
+                 "currents_a": [[float(c) for c in row] for row in model.current(t)]}
+    return {"run_id": run_id, "method": record["method"] if record else None,
+            "chosen": bool(record["chosen"]) if record else None, "source": source, **(parts or {"model": None}),
+            "curve": curve, "readings": readings, "count": len(readings),
+            "dark_range_c": [min(dark_t), max(dark_t)] if dark_t else None,
+            "light_range_c": [min(light_t), max(light_t)] if light_t else None}
+
+
+# --- the angular error over the field ---------------------------------------------------------------------
+def _summary(errors: list[float]) -> dict:
+    values = np.asarray([e for e in errors if e is not None], dtype=float)
+    if not values.size:
+        return {"n_points": len(errors), "n_failed": len(errors), "max_deg": None, "rms_deg": None}
+    return {"n_points": len(errors), "n_failed": len(errors) - int(values.size), "max_deg": float(values.max()),
+            "rms_deg": float(np.sqrt(np.mean(values**2)))}
+
+
+def qd_error_map(catalogue, run_id: int, method: str | None = None) -> dict:
+    """The angular error of one calibration (default: the chosen one) at every lit direction of the run: its
+    stored document applied to the direction's readings as the fit scored them (module docstring). A grid
+    node was fitted (`kind` "node": the error at the nodes); a check point between the nodes never was
+    (`kind` "check": held out). Each direction has its true (α, β, zenith, azimuth), the calibration's, and
+    the angle between them; a direction whose every reading the fit left out keeps the figures of all its
+    readings and says why in `excluded` (counted in no summary); `readings_left_out` names each reading left out.
+
+    Raises :class:`~bench.results.NoCalibration` when the run has no such calibration; the document's own
+    format errors (:class:`calibration.errors.CalibrationFormatError`) pass through."""
+    _qd_run(catalogue, run_id)
+    record = _record(catalogue, run_id, method)
+    document = record["document"]
+    validate_document(document)
+    dark = DarkModel.from_dict(document["dark"])
+    rejected = rejected_rows(document)
+    lineage = catalogue.lineage(run_id)
+    readings = _readings_by_point(catalogue, lineage)
+    directions, photocurrents = [], []
+    for point in catalogue.points(lineage):
+        if point["stage"] == DARK:
+            continue
+        rows = readings.get(point["id"], [])
+        left_out = [{"reading_id": r.id, "reason": SATURATED_REASON if r.status == SATURATED else
+                     (r.status if not r.ok else rejected[r.id])}
+                    for r in rows if not r.ok or r.id in rejected]
+        out = {entry["reading_id"] for entry in left_out}
+        used = [r for r in rows if r.id not in out]
+        measured = used or [r for r in rows if r.values.get("currents_a") is not None]
+        if not measured:  # nothing was read there: nothing to apply the calibration to
+            continue
+        photo = subtract_dark([r.values["currents_a"] for r in measured],
+                              [r.values["temperature_c"] for r in measured], dark)  # seed 002 §2.1
+        photocurrents.append(np.mean(photo, axis=0))
+        alpha, beta = _true_angles(point["zenith_deg"], point["azimuth_body_deg"])
+        reasons = list(dict.fromkeys(entry["reason"] for entry in left_out))
+        directions.append({"id": point["id"], "key": point["key"], "stage": point["stage"],
+                           "kind": "check" if point["stage"] == CHECK else "node",
+                           "alpha_deg": alpha, "beta_deg": beta, "zenith_deg": point["zenith_deg"],
+                           "azimuth_deg": point["azimuth_body_deg"], "n_readings": len(used),
+                           "excluded": "; ".join(reasons) if not used else None, "readings_left_out": left_out})
+    if directions:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            fit_a, fit_b = (np.asarray(v, dtype=float)
+                            for v in angles_from_photocurrents(document, np.array(photocurrents)))
+            true_a = np.array([d["alpha_deg"] for d in directions])
+            true_b = np.array([d["beta_deg"] for d in directions])
+            ok = np.isfinite(fit_a) & np.isfinite(fit_b)
+            error = np.where(ok, angle_between_projections_deg(true_a, true_b, np.where(ok, fit_a, 0.0),
+                                                               np.where(ok, fit_b, 0.0)), np.nan)
+            fit_zen, fit_az = zenith_azimuth_from_projection(np.where(ok, fit_a, 0.0), np.where(ok, fit_b, 0.0))
+        for i, d in enumerate(directions):
+            good = bool(ok[i])
+            d.update(alpha_fit_deg=_finite(fit_a[i]) if good else None,
+                     beta_fit_deg=_finite(fit_b[i]) if good else None,
+                     zenith_fit_deg=_finite(fit_zen[i]) if good else None,
+                     azimuth_fit_deg=_finite(fit_az[i]) if good else None,
+                     error_deg=_finite(error[i]) if good else None)
+    summary = {kind: _summary([d["error_deg"] for d in directions if d["kind"] == kind and not d["excluded"]])
+               for kind in ("node", "check")}
+    field = max((max(abs(d["alpha_deg"]), abs(d["beta_deg"])) for d in directions), default=None)
+    return {"run_id": run_id, "method": record["method"], "chosen": bool(record["chosen"]), "field_deg": field,
+            "summary": summary, "data": directions, "count": len(directions)}
+
+
+# --- every method's figures -------------------------------------------------------------------------------------
+def qd_metrics(catalogue, run_id: int) -> dict:
+    """Every calibration of the run with its figures (held out between the nodes: max, RMS, p99 and the scheme
+    that gave the worst; at the nodes; χ²/dof against the repeat scatter), the chosen one marked; of the chosen
+    (else the latest) document, the readings the fit rejected (with their point) and its warnings."""
+    _qd_run(catalogue, run_id)
+    records = catalogue.calibrations(run_id)
+    methods = []
+    for c in records:
+        m = c.get("metrics") or {}
+        methods.append({"id": c["id"], "method": c["method"], "chosen": bool(c["chosen"]),
+                        "created_utc": c["created_utc"],
+                        "error": m.get("error"), "heldout": m.get("heldout"), "heldout_scheme": m.get("heldout_scheme"),
+                        "heldout_by_scheme": m.get("heldout_by_scheme") or {}, "at_nodes": m.get("at_nodes"),
+                        "chi2_dof": m.get("chi2_dof")})
+    chosen = next((c for c in reversed(records) if c["chosen"]), records[-1] if records else None)
+    document = chosen["document"] if chosen else {}
+    keys = {r.id: (r.key, r.stage) for r in catalogue.readings(catalogue.lineage(run_id))}
+    rejected = []
+    for entry in document.get("rejected") or []:
+        if not isinstance(entry, dict):
+            continue
+        key, stage = keys.get(entry.get("row"), (None, None))
+        rejected.append({"row": entry.get("row"), "key": key, "stage": stage, "alpha_deg": entry.get("alpha_deg"),
+                         "beta_deg": entry.get("beta_deg"), "reason": str(entry.get("reason") or "")})
+    dark = document.get("dark") or {}
+    return {"run_id": run_id, "chosen": chosen["method"] if chosen else None, "data": methods, "count": len(methods),
+            "rejected": rejected, "warnings": [str(w) for w in document.get("warnings") or []],
+            "dark_model": dark.get("model"), "dark_note": dark.get("note")}
+
+
+__all__ = ["NotQdRun", "qd_currents", "qd_dark", "qd_error_map", "qd_metrics", "rejected_rows"]

@@ -1,0 +1,166 @@
+"""Wire format of the quadrant-photodiode (QD) sun-sensor module — sunbench's own, documented here.
+
+Seed 002's Sputnix module talks to the on-board computer "by a set of commands over a communication
+protocol" and says no more (digest §3.4), so the project defines one, shaped like the CMOS module's
+(:mod:`drivers.cmos_protocol`) with its own sync word, so a driver pointed at the wrong module reports
+"no sync" instead of misreading a reply.
+
+Frame, both directions, little-endian::
+
+    offset  size  field
+    0       2     sync        0xA5 0x51  ("Q")
+    2       1     code        command (host → module) or reply (module → host) code
+    3       1     sequence    chosen by the host, echoed in the reply
+    4       2     length N    payload length [bytes], at most MAX_PAYLOAD (255)
+    6       N     payload
+    6 + N   4     CRC-32      zlib.crc32 of bytes 2 … 6 + N − 1 (code to end of payload)
+
+===============  ==============  ===============================  ===========================================
+command          code  reply     payload sent                     reply payload
+===============  ==============  ===============================  ===========================================
+IDENTIFY         0x01  0x81      —                                model 16s, serial 16s, firmware 8s (ASCII,
+                                                                  NUL-padded), ADC bits u8, pedestal u16
+                                                                  [counts], amperes per count f32 × 4 (Q1 …
+                                                                  Q4) [A], detector side f32 [µm], dead gap
+                                                                  f32 [µm], integration per sample u32 [µs],
+                                                                  largest averaging count u16
+READ             0x02  0x82      — (one sample) or                samples N u16, flags u8, sums u32 × 4 (Q1 …
+                                 averaging count N u16            Q4, the N samples' ADC counts added)
+                                                                  [counts], die temperature i16 [0.01 °C]
+                                                                  (mean over the read), sample counter u32
+SET_TEMPERATURE  0x03  0x83      TEC mode u8 (0 off, 1 on),       TEC status (below)
+                                 setpoint i16 [0.01 °C]
+GET_TEMPERATURE  0x04  0x84      —                                TEC status: mode u8, setpoint i16
+                                                                  [0.01 °C], die temperature i16 [0.01 °C],
+                                                                  settled u8 (1 when within the module's
+                                                                  tolerance of the setpoint)
+(error)                0xFF                                       error code u8, message (ASCII)
+===============  ==============  ===============================  ===========================================
+
+Quadrants are numbered as seed 002's eq. 2.1 implies (digest §2.2): Q1 at (−x, −y), Q2 at (+x, +y), Q3 at
+(+x, −y), Q4 at (−x, +y) in the detector frame; every per-quadrant field is in the order Q1, Q2, Q3, Q4.
+
+READ: each of the N samples integrates the four photocurrents for the integration time, then converts them
+(one transimpedance channel and ADC per quadrant). A channel reads ``pedestal + I / (amperes per count)``
+counts, clipped to [0, 2^bits − 1]; the host takes ``I = (sum / N − pedestal) × amperes per count``. Flags:
+bit k (k = 0 … 3) is set when any sample of quadrant k + 1 was at full scale (2^bits − 1: saturated), bit
+k + 4 when any was at 0 (under range). The sample counter counts the samples taken since power-up,
+including this read's. A READ takes N × integration time plus a fixed conversion overhead; while it runs the
+module answers every command with error 5 (not ready).
+
+SET_TEMPERATURE drives the module's thermo-electric cooler (TEC): mode 1 regulates the die at the setpoint
+(used on the bench to sweep the dark current over temperature with the shutter closed); mode 0 switches the
+TEC off and the die drifts to ambient (the setpoint field is then ignored and echoed as sent). The reply is
+the TEC status after the change.
+
+Error codes: 1 unknown command, 2 bad length, 3 bad CRC (the command arrived corrupted; its sequence byte is
+echoed as received), 4 value out of range (averaging count 0 or above the largest, a setpoint outside the
+TEC's range, a TEC mode other than 0 or 1), 5 not ready (a READ is in progress).
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from dataclasses import dataclass
+
+SYNC = b"\xa5\x51"
+HEADER = struct.Struct("<2sBBH")
+CRC = struct.Struct("<I")
+MAX_PAYLOAD = 255
+
+IDENTIFY, READ, SET_TEMPERATURE, GET_TEMPERATURE = 0x01, 0x02, 0x03, 0x04
+REPLY = 0x80  # reply code = command | REPLY
+ERROR = 0xFF
+
+TEC_OFF, TEC_ON = 0, 1
+QUADRANTS = 4
+
+IDENTITY = struct.Struct("<16s16s8sBH4fffIH")
+READ_REQUEST = struct.Struct("<H")
+READ_REPLY = struct.Struct("<HB4IhI")
+TEC_REQUEST = struct.Struct("<Bh")
+TEC_STATUS = struct.Struct("<BhhB")
+
+UNKNOWN_COMMAND, BAD_LENGTH, BAD_CRC, OUT_OF_RANGE, NOT_READY = 1, 2, 3, 4, 5
+ERROR_MESSAGES = {1: "unknown command", 2: "bad length", 3: "bad CRC", 4: "value out of range", 5: "not ready"}
+
+
+def encode_frame(code: int, sequence: int, payload: bytes = b"") -> bytes:
+    """One frame: sync, header, payload, CRC-32."""
+    if len(payload) > MAX_PAYLOAD:
+        raise ValueError(f"payload of {len(payload)} bytes exceeds {MAX_PAYLOAD}")
+    body = bytes([code, sequence & 0xFF]) + struct.pack("<H", len(payload)) + payload
+    return SYNC + body + CRC.pack(zlib.crc32(body))
+
+
+@dataclass(frozen=True)
+class Frame:
+    code: int
+    sequence: int
+    payload: bytes
+
+
+class FrameError(ValueError):
+    """A frame that cannot be decoded; `consumed` bytes of the buffer belong to it (or to garbage)."""
+
+    def __init__(self, message: str, consumed: int):
+        super().__init__(message)
+        self.consumed = consumed
+
+
+class CrcMismatch(FrameError):
+    """A whole frame whose CRC-32 does not match: it arrived, corrupted (line noise)."""
+
+
+def decode_frame(buffer) -> tuple[Frame | None, int]:
+    """Take one frame from the start of `buffer`.
+
+    Returns
+    -------
+    frame : Frame or None
+        None when the buffer does not hold a whole frame yet.
+    consumed : int
+        Bytes of the buffer the frame used (0 when incomplete).
+
+    Raises
+    ------
+    FrameError
+        Garbage before a sync, a length over MAX_PAYLOAD or a CRC mismatch (:class:`CrcMismatch`);
+        `consumed` says how many bytes to drop to resynchronise.
+    """
+    if len(buffer) >= 2 and bytes(buffer[:2]) != SYNC:
+        at = bytes(buffer).find(SYNC, 1)
+        # keep a trailing 0xA5: it may be the first half of the next sync
+        raise FrameError("no sync at the start of the frame", at if at > 0 else len(buffer) - (buffer[-1] == SYNC[0]))
+    if len(buffer) < HEADER.size:
+        return None, 0
+    _, code, sequence, length = HEADER.unpack_from(buffer)
+    if length > MAX_PAYLOAD:
+        raise FrameError(f"payload length {length} exceeds {MAX_PAYLOAD}", 2)
+    total = HEADER.size + length + CRC.size
+    if len(buffer) < total:
+        return None, 0
+    body = bytes(buffer[2: HEADER.size + length])
+    (crc,) = CRC.unpack_from(buffer, HEADER.size + length)
+    if zlib.crc32(body) != crc:
+        raise CrcMismatch("CRC mismatch", total)
+    return Frame(code, sequence, body[4:]), total
+
+
+def frame_length(header: bytes) -> int:
+    """Whole length of the frame whose first HEADER.size bytes are `header` [bytes]."""
+    return HEADER.size + HEADER.unpack_from(header)[3] + CRC.size
+
+
+def centi(value_c: float) -> int:
+    """A temperature as the wire's i16 in 0.01 °C (clamped to the i16 range)."""
+    return max(min(int(round(value_c * 100.0)), 32767), -32768)
+
+
+def pad(text: str, size: int) -> bytes:
+    return text.encode("ascii", "replace")[:size].ljust(size, b"\0")
+
+
+def unpad(raw: bytes) -> str:
+    return raw.split(b"\0", 1)[0].decode("ascii", "replace")

@@ -1,0 +1,266 @@
+"""Driver of the quadrant-photodiode (QD) sun-sensor module (seed 002), over the framed protocol of
+:mod:`drivers.qd_protocol`.
+
+Every reply is checked — sync, CRC, the echoed sequence number, the reply code, the payload length. Bytes
+before a sync are skipped, and so is a whole reply to another sequence number (a late reply to an earlier
+request). A bad exchange raises a typed error carrying the bytes, after the port's input is drained so the
+next exchange starts clean: :class:`~drivers.errors.DeviceTimeout` (silence, or a reply cut short),
+:class:`~drivers.errors.ChecksumError` (a CRC mismatch, either way: the module reports error 3 when our
+command reached it corrupted) or :class:`~drivers.errors.ProtocolError` (anything else malformed). Each is
+asked again, up to ``retries`` times (3 by default), since every command of the module is safe to repeat
+(READ takes fresh samples; SET_TEMPERATURE sets an absolute setpoint). An error frame from the module is a
+:class:`QdSensorError` with its code, not retried.
+
+Counts become amperes with the module's own conversion, read once by IDENTIFY (a READ identifies first if
+nothing has): ``I = (mean counts − pedestal) × amperes per count`` of each quadrant. The dark current is
+*not* removed: that is the calibration's job (seed 002 §2.1).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from . import qd_protocol as wire
+from .errors import ChecksumError, DeviceError, DeviceTimeout, LimitError, ProtocolError
+from .interfaces import QuadrantReading, QuadrantSensor, SensorIdentity, TecStatus
+from .transport import DEFAULT_RETRIES, Port, ask_again
+
+
+class QdSensorError(DeviceError):
+    """The module answered with an error frame; `code` is its error code."""
+
+    def __init__(self, device: str, code: int, message: str):
+        self.code = code
+        super().__init__(device, f"module error {code} ({wire.ERROR_MESSAGES.get(code, 'unknown')}): {message}")
+
+
+@dataclass(frozen=True)
+class QdIdentity(SensorIdentity):
+    """What IDENTIFY reports, beyond model, serial and firmware.
+
+    Attributes
+    ----------
+    adc_bits : int
+    pedestal_counts : int
+        The ADC reading of zero current [counts].
+    amperes_per_count : tuple of 4 float
+        Conversion of each quadrant's channel (Q1 … Q4) [A/count].
+    detector_side_um : float
+        Side L of the square active area (seed 002 eq. 2.1) [µm].
+    gap_um : float
+        Width of the dead cross between the quadrants [µm].
+    integration_ms : float
+        Integration time of one sample [ms].
+    max_average : int
+        Largest averaging count READ accepts.
+    """
+
+    adc_bits: int
+    pedestal_counts: int
+    amperes_per_count: tuple[float, float, float, float]
+    detector_side_um: float
+    gap_um: float
+    integration_ms: float
+    max_average: int
+
+    @property
+    def full_scale_counts(self) -> int:
+        return (1 << self.adc_bits) - 1
+
+    @property
+    def full_scale_a(self) -> tuple[float, ...]:
+        """Largest current each channel reads before it saturates [A]."""
+        return tuple((self.full_scale_counts - self.pedestal_counts) * a for a in self.amperes_per_count)
+
+
+class QdSunSensor(QuadrantSensor):
+    """The quadrant-photodiode sun-sensor module.
+
+    Parameters
+    ----------
+    port : Port
+        Opened with ``open_port(url, baudrate=115200)`` (RS-485 adapter, or a simulator URL).
+    setpoint_range_c : (float, float)
+        TEC setpoints the bench allows [°C]; requests outside are refused before sending.
+    retries : int
+        How many times a command is sent again after a garbled, cut or missing reply (default 3,
+        :data:`~drivers.transport.DEFAULT_RETRIES`).
+    name : str, optional
+        Name in errors; default the port's.
+
+    Attributes
+    ----------
+    retry_count : int
+        Commands sent again so far: how noisy the link is.
+    """
+
+    reports_serial = True  # IDENTIFY answers the module's own serial
+
+    def __init__(self, port: Port, *, setpoint_range_c=(-40.0, 70.0), retries: int = DEFAULT_RETRIES,
+                 name: str | None = None):
+        self.port = port
+        self.name = name or port.name
+        self.setpoint_range_c = setpoint_range_c
+        self.retries = int(retries)
+        self.retry_count = 0
+        self._sequence = 0
+        self._identity: QdIdentity | None = None
+
+    # -- one exchange ---------------------------------------------------------------------------------
+    def _exchange(self, command: int, payload: bytes = b"", *, timeout_s: float | None = None) -> bytes:
+        """Send `command`, return its reply's payload; asked again after a garbled, cut or missing reply.
+
+        Each attempt carries a new sequence number, so a late reply to an earlier one is recognised and skipped.
+        """
+        return ask_again(self.name, lambda: self._exchange_once(command, payload, timeout_s), self.retries,
+                         on_retry=self._count_retry)
+
+    def _count_retry(self, exc: Exception) -> None:
+        self.retry_count += 1
+
+    def _exchange_once(self, command: int, payload: bytes, timeout_s: float | None) -> bytes:
+        with self.port.transaction():
+            self.port.discard_input()
+            self._sequence = (self._sequence + 1) & 0xFF
+            self.port.write(wire.encode_frame(command, self._sequence, payload))
+            frame = self._read_reply(self._sequence, timeout_s)
+            if frame.code == wire.ERROR:
+                code, message = 0, ""
+                if frame.payload:
+                    code, message = frame.payload[0], frame.payload[1:].decode("ascii", "replace")
+                if code == wire.BAD_CRC:  # the module got our command corrupted: the link, not the module
+                    raise ChecksumError(self.name, f"module error 3 (bad CRC): our command reached it corrupted "
+                                                   f"({message})")
+                raise QdSensorError(self.name, code, message)
+            if frame.code != command | wire.REPLY:
+                self._fail(f"reply code 0x{frame.code:02X} to command 0x{command:02X}",
+                           wire.encode_frame(frame.code, frame.sequence, frame.payload)[:64])
+            return frame.payload
+
+    def _read_reply(self, sequence: int, timeout_s: float | None) -> wire.Frame:
+        """The reply frame with `sequence`: garbage before a sync and replies to other sequences are skipped."""
+        deadline = time.monotonic() + (self.port.timeout_s if timeout_s is None else timeout_s)
+        buf = bytearray()
+        problem: tuple[str, bytes] | None = None  # the last thing skipped, for the error if nothing else comes
+        final = False
+        while True:
+            try:
+                frame, used = wire.decode_frame(buf)
+            except wire.CrcMismatch as exc:
+                self.port.discard_input()
+                raise ChecksumError(self.name, str(exc), received=bytes(buf[:min(exc.consumed, 64)])) from None
+            except wire.FrameError as exc:
+                used = max(exc.consumed, 1)
+                problem = (str(exc), bytes(buf[:min(used, 64)]))
+                del buf[:used]
+                continue
+            if frame is not None:
+                raw = bytes(buf[:min(used, 64)])
+                del buf[:used]
+                if frame.sequence == sequence:
+                    return frame
+                problem = (f"reply to sequence {frame.sequence}, expected {sequence}", raw)  # a late reply
+                continue
+            if final:
+                if buf:  # a frame began and stopped
+                    total = wire.frame_length(buf) if len(buf) >= wire.HEADER.size else wire.HEADER.size
+                    raise DeviceTimeout(self.name, f"reply cut short after {len(buf)} of {total} bytes",
+                                        received=bytes(buf[:64]))
+                if problem:
+                    raise ProtocolError(self.name, problem[0], received=problem[1])
+                raise DeviceTimeout(self.name, "no reply within the timeout")
+            missing = wire.HEADER.size - len(buf)
+            if missing <= 0:  # a header is in: the rest of the frame
+                missing = wire.frame_length(buf) - len(buf)
+            try:
+                buf += self.port.read_exact(missing, timeout_s=max(deadline - time.monotonic(), 1e-3))
+            except DeviceTimeout as exc:
+                buf += exc.received
+                final = True  # nothing more will come: decode what did, then say what went wrong
+
+    def _fail(self, message: str, received: bytes):
+        self.port.discard_input()
+        raise ProtocolError(self.name, message, received=received)
+
+    def _unpack(self, layout, payload: bytes, what: str):
+        if len(payload) != layout.size:
+            self._fail(f"{what} reply has {len(payload)} payload bytes, expected {layout.size}", payload[:64])
+        return layout.unpack(payload)
+
+    # -- the interface ----------------------------------------------------------------------------------
+    def identify(self) -> QdIdentity:
+        """Model, serial, firmware and the module's conversion constants (kept for :meth:`read`)."""
+        (model, serial, firmware, bits, pedestal, a1, a2, a3, a4, side_um, gap_um, integration_us,
+         max_average) = self._unpack(wire.IDENTITY, self._exchange(wire.IDENTIFY), "IDENTIFY")
+        amperes = (a1, a2, a3, a4)
+        if not (1 <= bits <= 32 and all(a > 0 for a in amperes) and integration_us > 0 and max_average >= 1):
+            self._fail(f"IDENTIFY reply is not a module's: {bits} bits, {amperes} A/count, {integration_us} us, "
+                       f"averaging up to {max_average}", b"")
+        self._identity = QdIdentity(wire.unpad(model), wire.unpad(serial), wire.unpad(firmware), int(bits),
+                                    int(pedestal), tuple(float(a) for a in amperes), float(side_um), float(gap_um),
+                                    integration_us / 1000.0, int(max_average))
+        return self._identity
+
+    @property
+    def identity(self) -> QdIdentity:
+        """The module's identity, asked for once."""
+        return self._identity or self.identify()
+
+    def read(self, average: int = 1) -> QuadrantReading:
+        """One reading: the mean of `average` samples of the four quadrants, and the die temperature.
+
+        A quadrant is flagged saturated when the module says one of its samples hit full scale or its mean is
+        at full scale; its current is then only a lower bound."""
+        ident = self.identity
+        if not 1 <= average <= ident.max_average:
+            raise LimitError(self.name, f"averaging count {average} is outside [1, {ident.max_average}]")
+        timeout_s = self.port.timeout_s + average * ident.integration_ms / 1000.0
+        n, flags, s1, s2, s3, s4, temperature, counter = self._unpack(
+            wire.READ_REPLY, self._exchange(wire.READ, wire.READ_REQUEST.pack(average), timeout_s=timeout_s), "READ")
+        if n != average:
+            self._fail(f"READ reply holds {n} samples, {average} were asked for", wire.READ_REPLY.pack(
+                n, flags, s1, s2, s3, s4, temperature, counter))
+        full = ident.full_scale_counts
+        sums = (s1, s2, s3, s4)
+        if any(s > n * full for s in sums):
+            self._fail(f"READ sums {sums} exceed {n} samples of {full} counts", b"")
+        counts = tuple(s / n for s in sums)
+        currents = tuple((c - ident.pedestal_counts) * a for c, a in zip(counts, ident.amperes_per_count))
+        saturated = tuple(bool(flags >> k & 1) or counts[k] >= full for k in range(4))
+        under = tuple(bool(flags >> (k + 4) & 1) or counts[k] <= 0 for k in range(4))
+        return QuadrantReading(counts, currents, saturated, under, temperature / 100.0, int(n), int(counter))
+
+    def _tec(self, payload: bytes, command: int, what: str) -> TecStatus:
+        mode, setpoint, temperature, settled = self._unpack(wire.TEC_STATUS, self._exchange(command, payload), what)
+        if mode not in (wire.TEC_OFF, wire.TEC_ON):
+            self._fail(f"{what} reply has TEC mode {mode}", wire.TEC_STATUS.pack(mode, setpoint, temperature, settled))
+        return TecStatus(mode == wire.TEC_ON, setpoint / 100.0 if mode == wire.TEC_ON else None,
+                         temperature / 100.0, bool(settled))
+
+    def set_temperature_setpoint_c(self, setpoint_c: float | None) -> TecStatus:
+        """Regulate the die at `setpoint_c` [°C] (resolution 0.01 °C); None switches the TEC off."""
+        if setpoint_c is None:
+            return self._tec(wire.TEC_REQUEST.pack(wire.TEC_OFF, 0), wire.SET_TEMPERATURE, "SET_TEMPERATURE")
+        low, high = self.setpoint_range_c
+        if not low <= setpoint_c <= high:
+            raise LimitError(self.name, f"setpoint {setpoint_c} °C is outside [{low}, {high}] °C")
+        return self._tec(wire.TEC_REQUEST.pack(wire.TEC_ON, wire.centi(setpoint_c)), wire.SET_TEMPERATURE,
+                         "SET_TEMPERATURE")
+
+    def temperature_status(self) -> TecStatus:
+        return self._tec(b"", wire.GET_TEMPERATURE, "GET_TEMPERATURE")
+
+    def wait_until_settled(self, *, timeout_s: float = 900.0, poll_s: float = 1.0, pause=time.sleep) -> TecStatus:
+        """Poll the TEC until the die has settled; :class:`DeviceTimeout` if it has not within `timeout_s`.
+
+        `pause(poll_s)` waits between polls (a caller that must be able to cancel passes one that raises)."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            status = self.temperature_status()
+            if status.settled:
+                return status
+            if time.monotonic() > deadline:
+                raise DeviceTimeout(self.name, f"TEC not settled after {timeout_s} s (die at "
+                                               f"{status.temperature_c:.2f} °C, setpoint {status.setpoint_c} °C)")
+            pause(poll_s)

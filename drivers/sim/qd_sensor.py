@@ -1,0 +1,269 @@
+"""Protocol front of the simulated quadrant-photodiode (QD) sun-sensor module (wire format:
+:mod:`drivers.qd_protocol`; physics: :mod:`drivers.sim.qd_optics`).
+
+The module sees the world's sun direction in the body frame (the table's true pose), the world's
+irradiance (lamp output through the shutter: zero when it is closed or the lamp off) and the world's
+temperature as its ambient. A READ of N samples takes N × integration time + overhead on the simulated
+clock: at time scale 0 the clock jumps there at once, otherwise the reply is held back until then, and any
+command arriving meanwhile gets error 5 (not ready). At time scale 0, GET_TEMPERATURE — the query a bench
+polls while it waits for the TEC — completes the settling (the clock jumps to the moment the die has
+settled), as asking whether the lamp is warm completes its warm-up.
+
+Back door (lewis style, never reachable over the wire): :attr:`faults` (the :class:`~drivers.sim.device.
+WireFaults` of every simulator: no reply, garbled, truncated, disconnected), :attr:`corrupt_crc` (the next
+replies carry a wrong CRC), :attr:`channel_faults` (stuck, dead or saturated channels; also
+:meth:`stick_channel`, :meth:`kill_channel`, :meth:`saturate_channel`, :meth:`clear_faults`),
+:meth:`mount` (another module on the fixture) and the world's temperature (ambient).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from .. import qd_protocol as wire
+from .device import SimDevice
+from .qd_optics import ChannelFaults, QdOptics, QdTruth, TecModel, sample_counts
+from .world import SimWorld
+
+MODEL = "SB-QD-SUN"
+FIRMWARE = "1.0.0"
+
+_D = QdTruth()
+_Quad = tuple[float, float, float, float]
+
+
+class QdSensorConfig(BaseModel):
+    """The simulated QD module (the ``simulation.qd`` section of a bench file): its true build, photometry,
+    dark current, electronics and TEC. Every field is :class:`~drivers.sim.qd_optics.QdTruth`'s, same name,
+    same default; `serial` is the configured module's (other serials of a fleet are drawn around it)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    serial: str = _D.serial
+    aperture_diameter_um: float = Field(_D.aperture_diameter_um, gt=0, le=1000)
+    height_um: float = Field(_D.height_um, gt=0)
+    detector_side_mm: float = Field(_D.detector_side_mm, gt=0)
+    gap_um: float = Field(_D.gap_um, ge=0)
+    x0_um: float = _D.x0_um
+    y0_um: float = _D.y0_um
+    alpha0_deg: float = Field(_D.alpha0_deg, ge=-10, le=10)
+    beta0_deg: float = Field(_D.beta0_deg, ge=-10, le=10)
+    phi0_deg: float = Field(_D.phi0_deg, ge=-45, le=45)
+    irradiance_w_m2: float = Field(_D.irradiance_w_m2, ge=0)
+    responsivity_a_w: float = Field(_D.responsivity_a_w, gt=0)
+    quadrant_response: _Quad = _D.quadrant_response
+    dark_na_at_25c: _Quad = _D.dark_na_at_25c
+    dark_doubling_c: _Quad = _D.dark_doubling_c
+    adc_bits: int = Field(_D.adc_bits, ge=8, le=24)
+    full_scale_ua: float = Field(_D.full_scale_ua, gt=0)
+    gain_error: _Quad = _D.gain_error
+    pedestal_counts: int = Field(_D.pedestal_counts, ge=0)
+    pedestal_error_counts: _Quad = _D.pedestal_error_counts
+    amp_noise_pa: float = Field(_D.amp_noise_pa, ge=0)
+    integration_ms: float = Field(_D.integration_ms, gt=0, le=1000)
+    overhead_ms: float = Field(_D.overhead_ms, ge=0)
+    max_average: int = Field(_D.max_average, ge=1, le=65535)
+    tec_tau_s: float = Field(_D.tec_tau_s, gt=0)
+    tec_range_c: tuple[float, float] = _D.tec_range_c
+    thermometer_offset_c: float = _D.thermometer_offset_c
+    thermometer_noise_c: float = Field(_D.thermometer_noise_c, ge=0)
+    settle_tolerance_c: float = Field(_D.settle_tolerance_c, gt=0)
+
+    @model_validator(mode="after")
+    def _physical(self):
+        self.truth()  # the truth's own checks at load time
+        return self
+
+    def truth(self) -> QdTruth:
+        return QdTruth(**self.model_dump())
+
+
+class QdSensorSimulator(SimDevice):
+    """The QD module on the simulated bench.
+
+    Parameters
+    ----------
+    world : SimWorld
+    truth : QdTruth or QdSensorConfig, optional
+        The module's true build; default the example build.
+    """
+
+    name = "qd-sensor"
+
+    def __init__(self, world: SimWorld, truth: QdTruth | QdSensorConfig | None = None):
+        super().__init__()
+        self.world = world
+        self.channel_faults = ChannelFaults()
+        self.corrupt_crc = 0
+        self._noise = world.rng("qd-noise")
+        self._held: list[tuple[float, bytes]] = []  # (ready time, reply) of the READ in progress
+        self.mount(truth.truth() if isinstance(truth, QdSensorConfig) else (truth or QdTruth()))
+
+    # -- back door ---------------------------------------------------------------------------------------
+    def mount(self, truth: QdTruth) -> None:
+        """Put the module `truth` on the fixture: powered up fresh (TEC off, at ambient, counter 0)."""
+        with self.lock:
+            self.truth = truth
+            self.optics = QdOptics(truth)
+            self.tec = TecModel(truth, self.world.clock, lambda: self.world.temperature_c)
+            self.samples = 0
+            self._held.clear()
+
+    def stick_channel(self, quadrant: int, counts: int) -> None:
+        self.channel_faults.stuck[self._quadrant(quadrant)] = int(counts)
+
+    def kill_channel(self, quadrant: int) -> None:
+        self.channel_faults.dead.add(self._quadrant(quadrant))
+
+    def saturate_channel(self, quadrant: int) -> None:
+        self.channel_faults.saturated.add(self._quadrant(quadrant))
+
+    def clear_faults(self) -> None:
+        self.channel_faults.clear()
+        self.faults.clear()
+        self.corrupt_crc = 0
+
+    @staticmethod
+    def _quadrant(q: int) -> int:
+        if q not in (1, 2, 3, 4):
+            raise ValueError(f"quadrants are numbered 1 … 4, got {q}")
+        return q
+
+    # -- the physics seen from the world -------------------------------------------------------------------
+    def photocurrents_a(self) -> np.ndarray:
+        """Noise-free photocurrents of Q1 … Q4 now, from the world's sun direction and irradiance [A]."""
+        irradiance = self.truth.irradiance_w_m2 * self.world.irradiance()
+        if irradiance <= 0:
+            return np.zeros(4)
+        zenith, azimuth = self.world.sun_direction_body()
+        return self.optics.photocurrents_a(zenith, azimuth, irradiance, self.world.bench.source_diameter_deg)
+
+    # -- framing -------------------------------------------------------------------------------------------
+    def handle(self, inbuf: bytearray) -> bytes:
+        out = bytearray()
+        while inbuf:
+            try:
+                frame, used = wire.decode_frame(inbuf)
+            except wire.CrcMismatch as exc:
+                sequence = inbuf[3]
+                del inbuf[: max(exc.consumed, 1)]
+                out += self._error(sequence, wire.BAD_CRC, "CRC mismatch")
+                continue
+            except wire.FrameError as exc:
+                del inbuf[: max(exc.consumed, 1)]
+                continue
+            if frame is None:
+                break
+            del inbuf[:used]
+            out += self._dispatch(frame)
+        return bytes(out)
+
+    def _reply(self, command: int, sequence: int, payload: bytes) -> bytes:
+        raw = wire.encode_frame(command | wire.REPLY, sequence, payload)
+        if self.corrupt_crc > 0:
+            self.corrupt_crc -= 1
+            raw = raw[:-1] + bytes([raw[-1] ^ 0xFF])
+        return raw
+
+    def _error(self, sequence: int, code: int, message: str) -> bytes:
+        return wire.encode_frame(wire.ERROR, sequence, bytes([code]) + message.encode("ascii", "replace"))
+
+    def _dispatch(self, frame: wire.Frame) -> bytes:
+        if self._busy():
+            return self._error(frame.sequence, wire.NOT_READY, "a READ is in progress")
+        handler = {wire.IDENTIFY: self._identify, wire.READ: self._read,
+                   wire.SET_TEMPERATURE: self._set_temperature, wire.GET_TEMPERATURE: self._get_temperature,
+                   }.get(frame.code)
+        if handler is None:
+            return self._error(frame.sequence, wire.UNKNOWN_COMMAND, f"unknown command 0x{frame.code:02X}")
+        return handler(frame)
+
+    def _busy(self) -> bool:
+        now = self.world.clock.now()
+        return any(t > now for t, _ in self._held)
+
+    # -- commands ------------------------------------------------------------------------------------------
+    def _identify(self, frame):
+        if frame.payload:
+            return self._error(frame.sequence, wire.BAD_LENGTH, "IDENTIFY takes no payload")
+        t = self.truth
+        payload = wire.IDENTITY.pack(wire.pad(MODEL, 16), wire.pad(t.serial, 16), wire.pad(FIRMWARE, 8), t.adc_bits,
+                                     t.pedestal_counts, *(float(a) for a in t.amperes_per_count),
+                                     t.detector_side_mm * 1000.0, t.gap_um, round(t.integration_ms * 1000),
+                                     t.max_average)
+        return self._reply(frame.code, frame.sequence, payload)
+
+    def _read(self, frame):
+        if len(frame.payload) == 0:
+            n = 1
+        elif len(frame.payload) == wire.READ_REQUEST.size:
+            (n,) = wire.READ_REQUEST.unpack(frame.payload)
+        else:
+            return self._error(frame.sequence, wire.BAD_LENGTH, "READ takes nothing or an averaging count u16")
+        t = self.truth
+        if not 1 <= n <= t.max_average:
+            return self._error(frame.sequence, wire.OUT_OF_RANGE, f"averaging count {n} outside [1, {t.max_average}]")
+        start = self.world.clock.now()
+        duration_s = (n * t.integration_ms + t.overhead_ms) / 1000.0
+        middle = start + 0.5 * n * t.integration_ms / 1000.0
+        die_c = self.tec.true_c(middle)
+        current = self.photocurrents_a() + self.optics.dark_current_a(die_c)
+        counts = sample_counts(t, current, n, self._noise, self.channel_faults)
+        full = t.full_scale_counts
+        flags = 0
+        for k in range(4):
+            flags |= int((counts[:, k] == full).any()) << k
+            flags |= int((counts[:, k] == 0).any()) << (k + 4)
+        thermometer = die_c + t.thermometer_offset_c + t.thermometer_noise_c * self._noise.standard_normal()
+        self.samples += n
+        payload = wire.READ_REPLY.pack(n, flags, *(int(s) for s in counts.sum(axis=0)), wire.centi(thermometer),
+                                       self.samples & 0xFFFFFFFF)
+        return self._hold(start + duration_s, self._reply(frame.code, frame.sequence, payload))
+
+    def _hold(self, ready: float, reply: bytes) -> bytes:
+        if self.world.clock.instant:
+            self.world.clock.advance_to(ready)
+            return reply
+        self._held.append((ready, reply))
+        return b""
+
+    def _status(self, frame) -> bytes:
+        t = self.truth
+        measured = self.tec.measured_c() + t.thermometer_noise_c * self._noise.standard_normal()
+        payload = wire.TEC_STATUS.pack(int(self.tec.enabled), wire.centi(self.tec.setpoint_c), wire.centi(measured),
+                                       int(self.tec.settled()))
+        return self._reply(frame.code, frame.sequence, payload)
+
+    def _set_temperature(self, frame):
+        if len(frame.payload) != wire.TEC_REQUEST.size:
+            return self._error(frame.sequence, wire.BAD_LENGTH, "SET_TEMPERATURE takes mode u8, setpoint i16")
+        mode, centi = wire.TEC_REQUEST.unpack(frame.payload)
+        setpoint = centi / 100.0
+        low, high = self.truth.tec_range_c
+        if mode not in (wire.TEC_OFF, wire.TEC_ON):
+            return self._error(frame.sequence, wire.OUT_OF_RANGE, f"TEC mode {mode}")
+        if mode == wire.TEC_ON and not low <= setpoint <= high:
+            return self._error(frame.sequence, wire.OUT_OF_RANGE, f"setpoint {setpoint} C outside [{low}, {high}] C")
+        self.tec.set(mode == wire.TEC_ON, setpoint)
+        return self._status(frame)
+
+    def _get_temperature(self, frame):
+        if frame.payload:
+            return self._error(frame.sequence, wire.BAD_LENGTH, "GET_TEMPERATURE takes no payload")
+        if self.world.clock.instant:
+            self.world.clock.advance_to(self.tec.settle_time_s())
+        return self._status(frame)
+
+    # -- time-driven output --------------------------------------------------------------------------------
+    def unsolicited(self) -> bytes:
+        if not self._held:
+            return b""
+        now = self.world.clock.now()
+        ready = [r for t, r in self._held if t <= now]
+        self._held = [(t, r) for t, r in self._held if t > now]
+        return b"".join(ready)
+
+    def reset_link(self) -> None:
+        super().reset_link()
+        self._held.clear()

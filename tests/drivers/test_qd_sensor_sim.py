@@ -1,0 +1,335 @@
+"""The QD module driver against its simulator through a sim:// port on a simulated bench (family "qd"):
+the currents follow the table, the lamp and the TEC as the world says."""
+
+import itertools
+import math
+import time
+
+import numpy as np
+import pytest
+
+from drivers import qd_protocol as wire
+from drivers.errors import ChecksumError, DeviceDisconnected, DeviceTimeout, ProtocolError
+from drivers.qd_sensor import QdSensorError, QdSunSensor
+from drivers.sim.bench import SimBench, SimBenchConfig
+from drivers.sim.qd_optics import QdOptics, QdTruth, disc_rect_area, qd_fleet_truth
+from drivers.sim.qd_sensor import QdSensorConfig
+from drivers.transport import open_port
+
+_names = itertools.count()
+
+
+@pytest.fixture
+def qd(request):
+    time_scale = getattr(request, "param", 0.0)
+    bench = SimBench(SimBenchConfig(family="qd", time_scale=time_scale, seed=3))
+    urls = bench.register(f"qd-test-{next(_names)}")
+    lamp = bench.world.lamp
+    if bench.world.clock.instant:
+        lamp.start()
+        lamp.is_warm()
+        lamp.shutter_open = True
+    sensor = QdSunSensor(open_port(urls["sensor"], baudrate=115200, timeout_s=0.3))
+    yield bench, bench.devices["sensor"], sensor
+    sensor.port.close()
+    bench.unregister()
+
+
+def point(world, alpha_deg, beta_deg):
+    """Turn the table so the Sun sits near projection angles (α, β) of the body frame: tan α = s_x/s_z,
+    tan β = s_y/s_z (the world's truth then differs by the sensor's mount tilt and the bench geometry)."""
+    tx, ty = math.tan(math.radians(alpha_deg)), math.tan(math.radians(beta_deg))
+    world.azimuth.move_to(math.degrees(math.atan2(ty, tx)) if tx or ty else 0.0)
+    world.zenith.move_to(math.degrees(math.atan(math.hypot(tx, ty))))
+    return world.sun_direction_body()
+
+
+def ratios(i):
+    """Seed 002 eq. 2.1's normalised differences (x, y) from Q1 … Q4."""
+    i1, i2, i3, i4 = i
+    s = i1 + i2 + i3 + i4
+    return ((i2 + i3) - (i1 + i4)) / s, ((i2 + i4) - (i1 + i3)) / s
+
+
+def dark_corrected(world, sensor, average=20):
+    world.lamp.shutter_open = True
+    lit = np.array(sensor.read(average).currents_a)
+    world.lamp.shutter_open = False
+    dark = np.array(sensor.read(average).currents_a)
+    world.lamp.shutter_open = True
+    return lit - dark
+
+
+# -- identity and build -------------------------------------------------------------------------------------
+def test_identify_reports_the_modules_conversion(qd):
+    bench, sim, sensor = qd
+    ident = sensor.identify()
+    truth = sim.truth
+    assert (ident.model, ident.serial, ident.adc_bits) == ("SB-QD-SUN", "QD-0001", 16)
+    assert ident.amperes_per_count == pytest.approx(tuple(truth.amperes_per_count), rel=1e-6)
+    assert (ident.detector_side_um, ident.gap_um, ident.integration_ms) == (1000.0, 5.0, 1.0)
+    assert ident.full_scale_a[0] == pytest.approx(2.0e-6, rel=0.01)
+
+
+def test_a_fleets_serials_are_built_reproducibly_from_the_serial(qd):
+    bench, sim, sensor = qd
+    fresh = {s: SimBench(SimBenchConfig(family="qd", time_scale=0.0)).mount_sensor(s) for s in ("QD-101", "QD-102")}
+    for serial in ("QD-102", "QD-101", "QD-102"):
+        assert bench.mount_sensor(serial) == fresh[serial] and sim.truth == fresh[serial]
+        assert sensor.identify().serial == serial
+    a, b = fresh["QD-101"], fresh["QD-102"]
+    assert (a.x0_um, a.height_um, a.quadrant_response) != (b.x0_um, b.height_um, b.quadrant_response)
+    assert bench.mount_sensor("QD-0001") == SimBenchConfig().qd.truth()  # the configured module is its own
+    for k in range(200):  # every fleet build keeps the spot over the centre across ±40° × ±40°
+        truth = qd_fleet_truth(QdTruth(), f"FM-{k}")
+        assert truth.centre_margin_um() > 4.0 and abs(truth.height_um - 30.0) <= 1.5
+
+
+# -- optics ----------------------------------------------------------------------------------------------
+def test_the_disc_rectangle_area_is_exact():
+    rng = np.random.default_rng(1)
+    pts = rng.uniform(-1, 1, (400_000, 2))
+    pts = pts[(pts ** 2).sum(axis=1) < 1]
+    for x1, x2, y1, y2 in [(-0.2, 0.6, 0.1, 2.0), (-2, 2, -2, 2), (0.05, 9, -9, -0.05), (-0.9, -0.4, -0.3, 0.3)]:
+        inside = ((pts[:, 0] > x1) & (pts[:, 0] < x2) & (pts[:, 1] > y1) & (pts[:, 1] < y2)).mean() * math.pi
+        assert disc_rect_area(x1, x2, y1, y2, 1.0) == pytest.approx(inside, abs=0.006)
+    assert disc_rect_area(-5, 5, -5, 5, 3.0) == pytest.approx(9 * math.pi)
+
+
+@pytest.mark.parametrize("alpha, beta, grow", [(20, 0, (1, 4)), (-20, 0, (2, 3)), (0, 20, (1, 3)), (0, -20, (2, 4))])
+def test_the_spot_moves_opposite_to_the_sun(qd, alpha, beta, grow):
+    """Sun towards +x → spot towards −x → Q1 (−x, −y) and Q4 (−x, +y) grow; towards +y → Q1 and Q3 (−y)."""
+    bench, _, sensor = qd
+    point(bench.world, alpha, beta)
+    i = dark_corrected(bench.world, sensor)
+    grown = i[grow[0] - 1] + i[grow[1] - 1]
+    assert grown > 1.4 * (i.sum() - grown)
+
+
+def test_the_ratios_are_monotonic_and_every_quadrant_stays_lit_over_the_field(qd):
+    bench, sim, sensor = qd
+    xs = []
+    for alpha in range(-40, 41, 10):
+        point(bench.world, alpha, 0)
+        xs.append(ratios(dark_corrected(bench.world, sensor, 4))[0])
+    assert np.all(np.diff(xs) < -0.05)  # Sun towards +x: spot towards −x, the x ratio falls
+    optics = sim.optics
+    for alpha in (-40, 40):
+        for beta in (-40, 40):  # the field's corners, through the optics alone
+            s = np.array([math.tan(math.radians(alpha)), math.tan(math.radians(beta)), 1.0])
+            zen, az = math.degrees(math.acos(s[2] / np.linalg.norm(s))), math.degrees(math.atan2(s[1], s[0]))
+            i = optics.photocurrents_a(zen, az, 1000.0, 0.5)
+            assert i.min() > 0.005 * i.sum()
+    assert sim.truth.centre_margin_um() > 5.0
+
+
+def test_the_thesis_geometry_saturates_the_ratio():
+    """d = 0.817 mm and y0 = +0.52 mm (seed 002 §5.2) with a 100 µm diaphragm: the spot straddles the x axis
+    only for β near 32.5°, elsewhere eq. 2.1's y ratio is ±1 and carries no angle. (A 3 mm detector keeps the
+    spot, which a ±40° sweep moves ±0.69 mm around y0, on the die.)"""
+    thesis = QdTruth(height_um=817.0, x0_um=-51.7, y0_um=520.0, alpha0_deg=0.0086, beta0_deg=-0.15, phi0_deg=0.0005,
+                     detector_side_mm=3.0)
+    assert thesis.centre_margin_um() < -1000
+    optics = QdOptics(thesis)
+    saturated = 0
+    for beta in range(-40, 41, 5):
+        y = ratios(optics.photocurrents_a(abs(beta), 90.0 if beta >= 0 else 270.0, 1000.0, 0.53))[1]
+        saturated += abs(abs(y) - 1.0) < 1e-9
+    assert saturated >= 15  # all but the one or two points near 32.5°
+
+
+def test_totals_follow_the_cosine_of_incidence(qd):
+    bench, sim, sensor = qd
+    totals = []
+    for omega in (0, 15, 30, 45):
+        point(bench.world, omega, 0)
+        s = sim.optics.die_direction(*bench.world.sun_direction_body())
+        totals.append(dark_corrected(bench.world, sensor).sum() / s[2])
+    # within 2 %: the dead cross takes a little less of the spot once it has moved off the centre
+    assert np.ptp(totals) < 0.02 * np.mean(totals) and totals[-1] > totals[0]
+    assert 2.0e-6 < np.mean(totals) < 3.0e-6  # 100 µm diaphragm, 1000 W/m², 0.35 A/W, less the dead cross
+    no_gap = QdOptics(QdTruth(gap_um=0.0))  # without the cross, exactly the aperture's projected area
+    for zenith, azimuth in [(0, 0), (20, 30), (45, 200), (55, 300)]:
+        cos_i = no_gap.die_direction(zenith, azimuth)[2]
+        power = no_gap.quadrant_power_w(zenith, azimuth, 1000.0, 0.5).sum()
+        assert power / cos_i == pytest.approx(1000.0 * math.pi * 50e-6 ** 2, rel=1e-4)
+
+
+def test_closed_shutter_leaves_the_dark_current(qd):
+    bench, sim, sensor = qd
+    bench.world.lamp.shutter_open = False
+    dark = np.array(sensor.read(200).currents_a)
+    expected = sim.optics.dark_current_a(sim.tec.true_c())
+    # the pedestal's error (a few counts, 30 pA each) and the noise are all that is left
+    assert dark == pytest.approx(expected, abs=0.15e-9)
+
+
+# -- temperature -----------------------------------------------------------------------------------------------
+def test_the_tec_setpoint_is_approached_first_order(qd):
+    bench, sim, sensor = qd
+    clock = bench.world.clock
+    start = sensor.read().temperature_c
+    assert start == pytest.approx(bench.world.temperature_c + sim.truth.thermometer_offset_c, abs=0.1)
+    status = sensor.set_temperature_setpoint_c(40.0)
+    assert status.enabled and status.setpoint_c == 40.0 and not status.settled
+    tau = sim.truth.tec_tau_s
+    clock.advance(tau)
+    assert sensor.read(10).temperature_c == pytest.approx(40.0 - (40.0 - start) / math.e, abs=0.15)
+    clock.advance(9 * tau)
+    assert sensor.read(10).temperature_c == pytest.approx(40.0, abs=0.1)
+    settled = sensor.wait_until_settled()
+    assert settled.settled and settled.temperature_c == pytest.approx(40.0, abs=0.1)
+    # switched off, the die drifts back to ambient; at time scale 0 asking completes the settling
+    assert not sensor.set_temperature_setpoint_c(None).enabled
+    t0 = clock.now()
+    back = sensor.temperature_status()
+    assert back.settled and back.setpoint_c is None and clock.now() - t0 > 5 * tau
+    assert back.temperature_c == pytest.approx(bench.world.temperature_c + sim.truth.thermometer_offset_c, abs=0.1)
+
+
+def test_the_dark_current_rises_with_temperature(qd):
+    bench, sim, sensor = qd
+    bench.world.lamp.shutter_open = False
+    dark = {}
+    for setpoint in (0.0, 20.0, 40.0, 60.0):
+        sensor.set_temperature_setpoint_c(setpoint)
+        sensor.wait_until_settled()
+        dark[setpoint] = np.array(sensor.read(500).currents_a)
+    for low, high in [(0.0, 20.0), (20.0, 40.0), (40.0, 60.0)]:
+        assert np.all(dark[high] > dark[low])
+    ratio = dark[60.0] / dark[40.0]  # doubling every ~9 °C: 20 °C is a factor of ~4.7
+    assert np.all((ratio > 3.5) & (ratio < 6.5))
+    assert np.all((dark[40.0] > 1e-9) & (dark[40.0] < 10e-9))  # nA level
+    assert len(set(np.round(dark[60.0] * 1e11))) == 4  # every quadrant its own
+
+
+# -- timing and noise --------------------------------------------------------------------------------------------
+def test_a_read_takes_its_integration_time_on_the_simulated_clock(qd):
+    bench, sim, sensor = qd
+    sensor.identify()
+    t0 = bench.world.clock.now()
+    reading = sensor.read(100)
+    assert bench.world.clock.now() - t0 == pytest.approx((100 * 1.0 + sim.truth.overhead_ms) / 1000.0)
+    assert reading.sample_counter == 100 and sensor.read(5).sample_counter == 105
+
+
+@pytest.mark.parametrize("qd", [1.0], indirect=True)
+def test_a_read_waits_for_its_samples_in_real_time_and_the_module_is_busy_meanwhile(qd):
+    bench, sim, sensor = qd
+    sensor.identify()
+    start = time.monotonic()
+    reading = sensor.read(60)
+    assert time.monotonic() - start >= 0.06 and reading.n_samples == 60
+    assert sim.receive(wire.encode_frame(wire.READ, 9, wire.READ_REQUEST.pack(100))) == b""  # held back
+    frame, _ = wire.decode_frame(sim.receive(wire.encode_frame(wire.GET_TEMPERATURE, 10)))
+    assert frame.code == wire.ERROR and frame.payload[0] == wire.NOT_READY
+
+
+def test_a_read_is_fast_and_quiet(qd):
+    bench, _, sensor = qd
+    point(bench.world, 10, -5)
+    sensor.read()
+    start = time.perf_counter()
+    xs = [ratios(sensor.read().currents_a)[0] for _ in range(50)]
+    per_read_s = (time.perf_counter() - start) / 50
+    assert per_read_s < 0.005
+    # near the centre d(ratio)/dα ≈ (4/π)(d/R) per radian = 0.013 per degree: the angle noise of one sample
+    assert np.std(xs) / 0.0133 < 0.01
+
+
+def test_a_bright_source_saturates_and_the_driver_flags_it(qd):
+    bench, _, sensor = qd
+    point(bench.world, 30, 30)
+    assert not sensor.read().any_saturated
+    bench.world.lamp.current_a = 3 * bench.world.lamp.spec.nominal_current_a
+    reading = sensor.read(10)
+    full = sensor.identity.full_scale_counts
+    assert reading.saturated == tuple(c == full for c in reading.counts) and reading.any_saturated
+
+
+# -- faults ----------------------------------------------------------------------------------------------------
+def test_channel_faults(qd):
+    bench, sim, sensor = qd
+    full = sensor.identify().full_scale_counts
+    sim.stick_channel(2, 12345)
+    sim.kill_channel(3)
+    sim.saturate_channel(4)
+    reading = sensor.read(50)
+    assert reading.counts[1] == 12345.0
+    assert abs(reading.currents_a[2]) < 0.2e-9  # pedestal and amplifier noise only
+    assert reading.counts[3] == full and reading.saturated == (False, False, False, True)
+    assert reading.currents_a[0] > 0.3e-6  # Q1 untouched
+    with pytest.raises(ValueError):
+        sim.kill_channel(5)
+    sim.clear_faults()
+    reading = sensor.read(50)
+    assert min(reading.currents_a) > 0.3e-6 and not reading.any_saturated
+
+
+def _inject(sim, fault, count):
+    if fault == "no_reply":
+        sim.faults.no_reply = True
+    elif fault == "corrupt_crc":
+        sim.corrupt_crc = count
+    else:
+        setattr(sim.faults, fault, count)
+
+
+@pytest.mark.parametrize("fault", ["garble", "truncate", "corrupt_crc"])
+def test_one_bad_reply_is_a_counted_retry(qd, fault):
+    _, sim, sensor = qd
+    sensor.identify()
+    _inject(sim, fault, 1)
+    assert sensor.read(3).n_samples == 3  # asked again: a fresh read
+    assert sensor.retry_count == 1
+
+
+@pytest.mark.parametrize("fault, error", [("no_reply", DeviceTimeout), ("garble", ProtocolError),
+                                          ("truncate", DeviceTimeout), ("corrupt_crc", ChecksumError)])
+def test_faults_give_typed_errors_then_a_clean_exchange(qd, fault, error):
+    bench, sim, sensor = qd
+    sensor.port.timeout_s = 0.05
+    _inject(sim, fault, sensor.retries + 1)
+    with pytest.raises(error, match=sensor.name) as info:
+        sensor.temperature_status()
+    assert info.value.attempts == sensor.retries + 1
+    sim.faults.clear()
+    assert sensor.temperature_status().temperature_c == pytest.approx(bench.world.temperature_c + 0.3, abs=0.1)
+
+
+def test_disconnect(qd):
+    _, sim, sensor = qd
+    sim.faults.disconnected = True
+    with pytest.raises(DeviceDisconnected):
+        sensor.identify()
+
+
+def test_the_module_answers_bad_commands_with_error_frames(qd):
+    _, sim, sensor = qd
+
+    def ask(raw):
+        frame, _ = wire.decode_frame(sim.receive(raw))
+        assert frame.code == wire.ERROR
+        return frame.sequence, frame.payload[0]
+
+    bad_crc = bytearray(wire.encode_frame(wire.GET_TEMPERATURE, 5))
+    bad_crc[-1] ^= 0xFF
+    assert ask(bytes(bad_crc)) == (5, wire.BAD_CRC)
+    assert ask(wire.encode_frame(0x7E, 6)) == (6, wire.UNKNOWN_COMMAND)
+    assert ask(wire.encode_frame(wire.READ, 7, b"\x01\x00\x00")) == (7, wire.BAD_LENGTH)
+    assert ask(wire.encode_frame(wire.READ, 8, wire.READ_REQUEST.pack(0))) == (8, wire.OUT_OF_RANGE)
+    assert ask(wire.encode_frame(wire.SET_TEMPERATURE, 9, wire.TEC_REQUEST.pack(1, 9000))) == (9, wire.OUT_OF_RANGE)
+    assert ask(wire.encode_frame(wire.SET_TEMPERATURE, 10, wire.TEC_REQUEST.pack(2, 0))) == (10, wire.OUT_OF_RANGE)
+    frame, _ = wire.decode_frame(sim.receive(wire.encode_frame(wire.READ, 11)))  # no payload: one sample
+    assert frame.code == wire.READ | wire.REPLY and wire.READ_REPLY.unpack(frame.payload)[0] == 1
+    with pytest.raises(QdSensorError, match="value out of range"):
+        QdSunSensor(sensor.port, setpoint_range_c=(-100, 100)).set_temperature_setpoint_c(90.0)
+
+
+def test_the_bench_config_section():
+    config = SimBenchConfig(family="qd", qd=QdSensorConfig(height_um=25.0, aperture_diameter_um=80.0))
+    bench = SimBench(config, time_scale=0.0)
+    assert bench.devices["sensor"].truth.height_um == 25.0
+    assert SimBench(time_scale=0.0).devices["sensor"].name == "cmos-sensor"  # the default family is unchanged
+    with pytest.raises(ValueError):
+        QdSensorConfig(quadrant_response=(1.0, 1.0, 1.0, -1.0))
