@@ -190,6 +190,37 @@ class QdGridProcedure(_Strict):
         return k * k + (k - 1) ** 2 * self.check_points + len(self.dark.temperatures_c)
 
 
+class QdPhysicalProcedure(_Strict):
+    """The QD physical model's short plan: nested grids of α, β from coarse to fine (every node of a coarser grid is
+    one of the next), the model fitted after each batch and scored on fixed check directions it never fits; the
+    run stops at the first batch whose check figures meet the targets (at most the finest grid's nodes)."""
+
+    field_deg: float = Field(40.0, gt=0, le=60)
+    steps_deg: tuple[float, ...] = Field((20.0, 10.0, 5.0), min_length=1, max_length=6)
+    check_directions: int = Field(16, ge=4, le=200)
+    repeats: int = Field(2, ge=1, le=100)
+    check_max_target_deg: float = Field(0.02, gt=0, le=5)
+    check_rms_target_deg: float = Field(0.01, gt=0, le=5)
+    temperature_c: float | None = Field(25.0, ge=-40, le=70)
+    dark: QdDarkSweep = QdDarkSweep()
+
+    @model_validator(mode="after")
+    def _nested(self):
+        steps = self.steps_deg
+        for step in steps:
+            if abs(self.field_deg / step - round(self.field_deg / step)) > 1e-9:
+                raise ValueError(f"every step must divide the field: {self.field_deg:g}° / {step:g}° is not whole")
+        for coarse, fine in zip(steps, steps[1:]):
+            if not (fine < coarse and abs(coarse / fine - round(coarse / fine)) < 1e-9):
+                raise ValueError(f"steps must shrink by whole factors, so each grid holds the one before: {coarse:g}° "
+                                 f"then {fine:g}°")
+        return self
+
+    def points(self) -> int:
+        k = int(round(2 * self.field_deg / self.steps_deg[-1])) + 1
+        return k * k + self.check_directions + len(self.dark.temperatures_c)
+
+
 class Alignment(_Strict):
     """Caliper readings of the bench alignment (seed 003 §4.1), checked before anything moves.
 
@@ -208,7 +239,7 @@ class Campaign(_Strict):
     """A campaign: a procedure run on one sensor or on a fleet (a flight batch is ten)."""
 
     name: str = Field(min_length=1)
-    plan: Literal["seed003", "grid", "physical", "qd-grid", "qd-dark"] = "seed003"
+    plan: Literal["seed003", "grid", "physical", "qd-grid", "qd-physical", "qd-dark"] = "seed003"
     operator: str = "unknown"
     sensors: tuple[str, ...] = Field(("SIM-0001",), min_length=1, max_length=MAX_SENSORS)
     frames: Literal["roi", "full", "none"] = "roi"
@@ -216,6 +247,7 @@ class Campaign(_Strict):
     grid: GridProcedure = GridProcedure()
     physical: PhysicalProcedure = PhysicalProcedure()
     qd_grid: QdGridProcedure = QdGridProcedure()
+    qd_physical: QdPhysicalProcedure = QdPhysicalProcedure()
     qd_dark: QdDarkSweep = QdDarkSweep()
     alignment: Alignment | None = None
     methods: tuple[str, ...] | None = None  # the fits at the run's end; None: every method of the sensor family
@@ -255,6 +287,8 @@ class Campaign(_Strict):
             return len(self.grid.azimuths_deg) * len(self.grid.zenith_stage_deg)
         if self.plan == "qd-grid":
             return self.qd_grid.points()
+        if self.plan == "qd-physical":
+            return self.qd_physical.points()
         if self.plan == "qd-dark":
             return len(self.qd_dark.temperatures_c)
         return self.physical.max_points

@@ -1,7 +1,9 @@
 """Wire format of the CMOS pinhole sun-sensor module — sunbench's own, documented here.
 
 Seed 003's module (an STM32 driving a 640×480 10-bit LUPA300 over RS-485) has no published protocol, so the
-project defines one (research note anchors-protocols §6.3: "project-defined … document it as ours").
+project defines one (research note anchors-protocols §6.3: "project-defined … document it as ours"). The framing
+code is :mod:`drivers.framed_protocol`'s, shared with the QD module; this module gives it the sync word, the u32
+length field and the largest payload of the table below.
 
 Frame, both directions, little-endian::
 
@@ -37,19 +39,38 @@ status: 0 ok, 1 no spot, 2 saturated spot, 3 several spots. Error codes: 1 unkno
 from __future__ import annotations
 
 import struct
-import zlib
-from dataclasses import dataclass
 
 import numpy as np
 
-SYNC = b"\xa5\x5a"
-HEADER = struct.Struct("<2sBBI")
-CRC = struct.Struct("<I")
-MAX_PAYLOAD = 2 * 1024 * 1024
+# re-exported: the framing the CMOS and QD modules share (drivers/framed_protocol.py), under the names the driver,
+# the simulator and the tests import from here
+from .framed_protocol import (  # noqa: F401 - re-exported
+    BAD_CRC,
+    BAD_LENGTH,
+    CRC,
+    ERROR,
+    ERROR_MESSAGES,
+    NOT_READY,
+    OUT_OF_RANGE,
+    REPLY,
+    UNKNOWN_COMMAND,
+    CrcMismatch,
+    Frame,
+    FrameError,
+    FrameFormat,
+    centi,
+    pad,
+    unpad,
+)
+
+FORMAT = FrameFormat(sync=b"\xa5\x5a", length=struct.Struct("<I"), max_payload=2 * 1024 * 1024)
+SYNC = FORMAT.sync
+HEADER = FORMAT.header  # <2sBBI: sync, code, sequence, length
+MAX_PAYLOAD = FORMAT.max_payload
+encode_frame = FORMAT.encode  # (code, sequence, payload=b"") -> one frame: sync, header, payload, CRC-32
+decode_frame = FORMAT.decode  # (buffer) -> (Frame or None while incomplete, bytes consumed); raises FrameError
 
 IDENTIFY, SET_EXPOSURE, GET_EXPOSURE, CAPTURE, CENTROID, TEMPERATURE = 0x01, 0x02, 0x03, 0x04, 0x05, 0x06
-REPLY = 0x80  # reply code = command | REPLY
-ERROR = 0xFF
 
 RAW16, PACKED10 = 0, 1
 
@@ -59,70 +80,7 @@ FRAME_HEADER = struct.Struct("<HHBBII")
 CENTROID_REPLY = struct.Struct("<ffHHBI")
 TEMPERATURE_REPLY = struct.Struct("<h")
 
-ERROR_MESSAGES = {1: "unknown command", 2: "bad length", 3: "bad CRC", 4: "value out of range", 5: "not ready"}
 CENTROID_STATUS = {0: "ok", 1: "no spot", 2: "saturated spot", 3: "several spots"}
-
-
-def encode_frame(code: int, sequence: int, payload: bytes = b"") -> bytes:
-    """One frame: sync, header, payload, CRC-32."""
-    if len(payload) > MAX_PAYLOAD:
-        raise ValueError(f"payload of {len(payload)} bytes exceeds {MAX_PAYLOAD}")
-    body = bytes([code, sequence & 0xFF]) + struct.pack("<I", len(payload)) + payload
-    return SYNC + body + CRC.pack(zlib.crc32(body))
-
-
-@dataclass(frozen=True)
-class Frame:
-    code: int
-    sequence: int
-    payload: bytes
-
-
-class FrameError(ValueError):
-    """A frame that cannot be decoded; `consumed` bytes of the buffer belong to it (or to garbage)."""
-
-    def __init__(self, message: str, consumed: int):
-        super().__init__(message)
-        self.consumed = consumed
-
-
-class CrcMismatch(FrameError):
-    """A whole frame whose CRC-32 does not match: it arrived, corrupted (line noise)."""
-
-
-def decode_frame(buffer) -> tuple[Frame | None, int]:
-    """Take one frame from the start of `buffer`.
-
-    Returns
-    -------
-    frame : Frame or None
-        None when the buffer does not hold a whole frame yet.
-    consumed : int
-        Bytes of the buffer the frame used (0 when incomplete).
-
-    Raises
-    ------
-    FrameError
-        Garbage before a sync, a length over MAX_PAYLOAD or a CRC mismatch (:class:`CrcMismatch`);
-        `consumed` says how many bytes to drop to resynchronise.
-    """
-    start = bytes(buffer[:2])
-    if len(buffer) >= 2 and start != SYNC:
-        at = bytes(buffer).find(SYNC, 1)
-        raise FrameError("no sync at the start of the frame", at if at > 0 else len(buffer) - (buffer[-1] == 0xA5))
-    if len(buffer) < HEADER.size:
-        return None, 0
-    _, code, sequence, length = HEADER.unpack_from(buffer)
-    if length > MAX_PAYLOAD:
-        raise FrameError(f"payload length {length} exceeds {MAX_PAYLOAD}", 2)
-    total = HEADER.size + length + CRC.size
-    if len(buffer) < total:
-        return None, 0
-    body = bytes(buffer[2: HEADER.size + length])
-    (crc,) = CRC.unpack_from(buffer, HEADER.size + length)
-    if zlib.crc32(body) != crc:
-        raise CrcMismatch("CRC mismatch", total)
-    return Frame(code, sequence, body[6:]), total
 
 
 def pack10(pixels: np.ndarray) -> bytes:
@@ -145,10 +103,3 @@ def unpack10(data: bytes, count: int) -> np.ndarray:
     high |= (low >> np.array([0, 2, 4, 6], dtype=np.uint8)) & 3
     return high.reshape(-1)
 
-
-def pad(text: str, size: int) -> bytes:
-    return text.encode("ascii", "replace")[:size].ljust(size, b"\0")
-
-
-def unpad(raw: bytes) -> str:
-    return raw.split(b"\0", 1)[0].decode("ascii", "replace")

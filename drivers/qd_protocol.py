@@ -3,7 +3,8 @@
 Seed 002's Sputnix module talks to the on-board computer "by a set of commands over a communication
 protocol" and says no more (digest §3.4), so the project defines one, shaped like the CMOS module's
 (:mod:`drivers.cmos_protocol`) with its own sync word, so a driver pointed at the wrong module reports
-"no sync" instead of misreading a reply.
+"no sync" instead of misreading a reply. The framing code is :mod:`drivers.framed_protocol`'s, shared with the
+CMOS module; this module gives it the sync word, the u16 length field and the largest payload of the table below.
 
 Frame, both directions, little-endian::
 
@@ -61,17 +62,37 @@ TEC's range, a TEC mode other than 0 or 1), 5 not ready (a READ is in progress).
 from __future__ import annotations
 
 import struct
-import zlib
-from dataclasses import dataclass
 
-SYNC = b"\xa5\x51"
-HEADER = struct.Struct("<2sBBH")
-CRC = struct.Struct("<I")
-MAX_PAYLOAD = 255
+# re-exported: the framing the QD and CMOS modules share (drivers/framed_protocol.py), under the names the driver,
+# the simulator and the tests import from here
+from .framed_protocol import (  # noqa: F401 - re-exported
+    BAD_CRC,
+    BAD_LENGTH,
+    CRC,
+    ERROR,
+    ERROR_MESSAGES,
+    NOT_READY,
+    OUT_OF_RANGE,
+    REPLY,
+    UNKNOWN_COMMAND,
+    CrcMismatch,
+    Frame,
+    FrameError,
+    FrameFormat,
+    centi,
+    pad,
+    unpad,
+)
+
+FORMAT = FrameFormat(sync=b"\xa5\x51", length=struct.Struct("<H"), max_payload=255)
+SYNC = FORMAT.sync
+HEADER = FORMAT.header  # <2sBBH: sync, code, sequence, length
+MAX_PAYLOAD = FORMAT.max_payload
+encode_frame = FORMAT.encode  # (code, sequence, payload=b"") -> one frame: sync, header, payload, CRC-32
+decode_frame = FORMAT.decode  # (buffer) -> (Frame or None while incomplete, bytes consumed); raises FrameError
+frame_length = FORMAT.frame_length  # (header) -> whole length of the frame whose first HEADER.size bytes it is
 
 IDENTIFY, READ, SET_TEMPERATURE, GET_TEMPERATURE = 0x01, 0x02, 0x03, 0x04
-REPLY = 0x80  # reply code = command | REPLY
-ERROR = 0xFF
 
 TEC_OFF, TEC_ON = 0, 1
 QUADRANTS = 4
@@ -81,86 +102,3 @@ READ_REQUEST = struct.Struct("<H")
 READ_REPLY = struct.Struct("<HB4IhI")
 TEC_REQUEST = struct.Struct("<Bh")
 TEC_STATUS = struct.Struct("<BhhB")
-
-UNKNOWN_COMMAND, BAD_LENGTH, BAD_CRC, OUT_OF_RANGE, NOT_READY = 1, 2, 3, 4, 5
-ERROR_MESSAGES = {1: "unknown command", 2: "bad length", 3: "bad CRC", 4: "value out of range", 5: "not ready"}
-
-
-def encode_frame(code: int, sequence: int, payload: bytes = b"") -> bytes:
-    """One frame: sync, header, payload, CRC-32."""
-    if len(payload) > MAX_PAYLOAD:
-        raise ValueError(f"payload of {len(payload)} bytes exceeds {MAX_PAYLOAD}")
-    body = bytes([code, sequence & 0xFF]) + struct.pack("<H", len(payload)) + payload
-    return SYNC + body + CRC.pack(zlib.crc32(body))
-
-
-@dataclass(frozen=True)
-class Frame:
-    code: int
-    sequence: int
-    payload: bytes
-
-
-class FrameError(ValueError):
-    """A frame that cannot be decoded; `consumed` bytes of the buffer belong to it (or to garbage)."""
-
-    def __init__(self, message: str, consumed: int):
-        super().__init__(message)
-        self.consumed = consumed
-
-
-class CrcMismatch(FrameError):
-    """A whole frame whose CRC-32 does not match: it arrived, corrupted (line noise)."""
-
-
-def decode_frame(buffer) -> tuple[Frame | None, int]:
-    """Take one frame from the start of `buffer`.
-
-    Returns
-    -------
-    frame : Frame or None
-        None when the buffer does not hold a whole frame yet.
-    consumed : int
-        Bytes of the buffer the frame used (0 when incomplete).
-
-    Raises
-    ------
-    FrameError
-        Garbage before a sync, a length over MAX_PAYLOAD or a CRC mismatch (:class:`CrcMismatch`);
-        `consumed` says how many bytes to drop to resynchronise.
-    """
-    if len(buffer) >= 2 and bytes(buffer[:2]) != SYNC:
-        at = bytes(buffer).find(SYNC, 1)
-        # keep a trailing 0xA5: it may be the first half of the next sync
-        raise FrameError("no sync at the start of the frame", at if at > 0 else len(buffer) - (buffer[-1] == SYNC[0]))
-    if len(buffer) < HEADER.size:
-        return None, 0
-    _, code, sequence, length = HEADER.unpack_from(buffer)
-    if length > MAX_PAYLOAD:
-        raise FrameError(f"payload length {length} exceeds {MAX_PAYLOAD}", 2)
-    total = HEADER.size + length + CRC.size
-    if len(buffer) < total:
-        return None, 0
-    body = bytes(buffer[2: HEADER.size + length])
-    (crc,) = CRC.unpack_from(buffer, HEADER.size + length)
-    if zlib.crc32(body) != crc:
-        raise CrcMismatch("CRC mismatch", total)
-    return Frame(code, sequence, body[4:]), total
-
-
-def frame_length(header: bytes) -> int:
-    """Whole length of the frame whose first HEADER.size bytes are `header` [bytes]."""
-    return HEADER.size + HEADER.unpack_from(header)[3] + CRC.size
-
-
-def centi(value_c: float) -> int:
-    """A temperature as the wire's i16 in 0.01 °C (clamped to the i16 range)."""
-    return max(min(int(round(value_c * 100.0)), 32767), -32768)
-
-
-def pad(text: str, size: int) -> bytes:
-    return text.encode("ascii", "replace")[:size].ljust(size, b"\0")
-
-
-def unpad(raw: bytes) -> str:
-    return raw.split(b"\0", 1)[0].decode("ascii", "replace")

@@ -20,7 +20,19 @@ from calibration.qd.evaluation import calibrate_qd
 from calibration.stage_geometry import StageGeometry
 
 from ..descriptor import FieldSpec, ReadingDescriptor
-from ..messages import CloseShutter, LampOn, Log, Measure, OpenShutter, Point, Reading, SetTemperature, WaitWarm
+from ..messages import (
+    CloseShutter,
+    LampOn,
+    Log,
+    MayStopEarly,
+    Measure,
+    OpenShutter,
+    Point,
+    Reading,
+    Record,
+    SetTemperature,
+    WaitWarm,
+)
 from . import Family, register
 
 #: Samples the module averages into one reading (1 ms each on the simulated module)
@@ -75,28 +87,50 @@ def status(sensor) -> dict:
 # --- plans ---------------------------------------------------------------------------------------------------
 def dark_sweep(sweep):
     """Dark readings over temperature, shutter closed (seed 002 §2.1): the module's thermal control is set to
-    each temperature and `sweep.repeats` readings are taken at the table's home."""
+    each temperature and `sweep.repeats` readings are taken at the table's home. Returns the readings."""
     yield CloseShutter()
+    readings = []
     for t in sweep.temperatures_c:
         reached = yield SetTemperature(float(t), sweep.tolerance_c)
         yield Log(f"dark sweep: the die is at {reached:.2f} °C" if reached is not None else
                   f"dark sweep: {t:g} °C")
-        yield Measure(Point(f"{DARK}_t{float(t):+07.2f}", DARK, 0.0, 0.0, sweep.repeats))
+        readings += (yield Measure(Point(f"{DARK}_t{float(t):+07.2f}", DARK, 0.0, 0.0, sweep.repeats))) or []
+    return readings
 
 
-def grid_points(procedure, mount) -> list[Point]:
-    """The plan's poses: a square (α, β) grid over ±field and the cells' centres, each set on the table through
-    its kinematics, in serpentine order (fewer long moves)."""
-    grid = projection_grid(procedure.field_deg, procedure.step_deg, checkpoints=procedure.check_points)
-    alpha, beta, check = grid["alpha_deg"], grid["beta_deg"], grid["check"]
+def _points(alpha, beta, check, repeats: int, mount, step_deg: float) -> list[Point]:
+    """Directions (α, β) as table poses through the table's kinematics, in serpentine order (fewer long moves)."""
+    alpha, beta, check = np.asarray(alpha, float), np.asarray(beta, float), np.asarray(check, bool)
     first, second = mount_for_projection(alpha, beta, mount)
-    order = np.lexsort((np.where(np.round(alpha / procedure.step_deg * 2) % 2 == 0, beta, -beta), alpha))
+    order = np.lexsort((np.where(np.round(alpha / step_deg * 2) % 2 == 0, beta, -beta), alpha))
     points = []
     for i in order:
         stage = CHECK if check[i] else GRID
         key = f"{stage}_a{alpha[i]:+07.2f}_b{beta[i]:+07.2f}"
-        points.append(Point(key, stage, round(float(first[i]), 4), round(float(second[i]), 4), procedure.repeats))
+        points.append(Point(key, stage, round(float(first[i]), 4), round(float(second[i]), 4), repeats))
     return points
+
+
+def grid_points(procedure, mount) -> list[Point]:
+    """The grid plan's poses: a square (α, β) grid over ±field and the cells' centres."""
+    grid = projection_grid(procedure.field_deg, procedure.step_deg, checkpoints=procedure.check_points)
+    return _points(grid["alpha_deg"], grid["beta_deg"], grid["check"], procedure.repeats, mount, procedure.step_deg)
+
+
+def check_directions(n: int, field_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """`n` check directions spread over the field and off every grid: the Halton sequence in bases 2 and 3,
+    over 95 % of ±field [°] (the same every run, so a resumed run measures the same ones)."""
+    def halton(i: int, base: int) -> float:
+        f, r = 1.0, 0.0
+        while i > 0:
+            f /= base
+            r += f * (i % base)
+            i //= base
+        return r
+
+    u = np.array([[halton(i + 1, 2), halton(i + 1, 3)] for i in range(n)])
+    span = 0.95 * field_deg
+    return np.round((2 * u[:, 0] - 1) * span, 2), np.round((2 * u[:, 1] - 1) * span, 2)
 
 
 def qd_grid_plan(procedure, *, mount):
@@ -113,6 +147,80 @@ def qd_grid_plan(procedure, *, mount):
     yield CloseShutter()
 
 
+def _bench_data(readings, stages) -> QdBenchData | None:
+    """The readings a plan was answered, as bench data; None for preflight's dry readings (no direction)."""
+    lit = [r for r, s in zip(readings, stages) if s != DARK]
+    if any(not np.isfinite(r.zenith_deg) for r in lit):
+        return None
+    ok = [(r, s) for r, s in zip(readings, stages) if r.ok]
+    return QdBenchData(zenith_deg=np.array([0.0 if s == DARK else r.zenith_deg for r, s in ok]),
+                       azimuth_deg=np.array([0.0 if s == DARK else r.azimuth_body_deg for r, s in ok]),
+                       currents_a=np.array([r.values["currents_a"] for r, _ in ok]),
+                       temperature_c=np.array([r.values["temperature_c"] for r, _ in ok]),
+                       repeat=np.array([r.repeat for r, _ in ok]), dark=np.array([s == DARK for _, s in ok]),
+                       check=np.array([s == CHECK for _, s in ok]))
+
+
+def qd_physical_plan(procedure, *, mount):
+    """The physical model's short plan (the QD analogue of the CMOS ``physical`` plan).
+
+    1. The dark sweep, with the source off.
+    2. Batch 1: the coarsest grid of α, β (every `steps_deg[0]`) and `check_directions` fixed check directions off
+       every grid (:func:`check_directions`); the physical model is fitted to the nodes measured so far
+       (:func:`calibration.qd.evaluation.calibrate_qd`) and scored on the check directions, which it never fits.
+    3. Stop once the check maximum and RMS meet their targets; otherwise the next, finer grid's new nodes.
+
+    In preflight nothing is fitted (the dry readings have no direction), so the plan expands to its finest grid:
+    its counts are the upper bound (:class:`MayStopEarly`).
+    """
+    steps = procedure.steps_deg
+    yield Log(f"QD physical procedure: grids every {', '.join(f'{s:g}' for s in steps)}° over "
+              f"±{procedure.field_deg:g}°, {procedure.check_directions} check directions; it stops once the check "
+              f"maximum is ≤ {procedure.check_max_target_deg}° and the RMS ≤ {procedure.check_rms_target_deg}°")
+    yield MayStopEarly(f"the qd-physical plan stops after the first of its {len(steps)} grids whose fit meets the "
+                       "targets")
+    dark = yield from dark_sweep(procedure.dark)
+    readings, stages = list(dark), [DARK] * len(dark)
+    if procedure.temperature_c is not None:
+        yield SetTemperature(float(procedure.temperature_c), procedure.dark.tolerance_c)
+    yield LampOn()
+    yield WaitWarm()
+    yield OpenShutter()
+    measured: set[str] = set()
+    check_alpha, check_beta = check_directions(procedure.check_directions, procedure.field_deg)
+    decision: dict = {}
+    for number, step in enumerate(steps, start=1):
+        grid = projection_grid(procedure.field_deg, step, checkpoints=False)
+        points = [p for p in _points(grid["alpha_deg"], grid["beta_deg"], grid["check"], procedure.repeats, mount,
+                                     step) if p.key not in measured]
+        if number == 1:
+            points += _points(check_alpha, check_beta, np.ones(check_alpha.size, bool), procedure.repeats, mount,
+                              step)
+        for point in points:
+            answer = (yield Measure(point)) or []
+            readings += answer
+            stages += [point.stage] * len(answer)
+            measured.add(point.key)
+        data = _bench_data(readings, stages)
+        if data is None:
+            continue  # preflight: nothing to decide on
+        report = calibrate_qd(data, methods=("physical",)).report("physical")
+        check = report.heldout_by_scheme.get("check")
+        decision = {"grid_step_deg": step, "n_nodes": int(sum(1 for k in measured if k.startswith(GRID))),
+                    "check_max_deg": None if check is None else check.max_deg,
+                    "check_rms_deg": None if check is None else check.rms_deg, "error": report.error}
+        decision["stop"] = bool(check is not None and check.max_deg <= procedure.check_max_target_deg
+                                and check.rms_deg <= procedure.check_rms_target_deg)
+        yield Record(f"qd_physical_batch_{number}", decision)
+        yield Log(f"grid {number}/{len(steps)} ({step:g}°, {decision['n_nodes']} nodes): check max "
+                  + (f"{check.max_deg:.4f}°, RMS {check.rms_deg:.4f}°" if check else "—")
+                  + ("; targets met, stopping" if decision["stop"] else ""))
+        if decision["stop"]:
+            break
+    yield Record("qd_physical_stop", decision)
+    yield CloseShutter()
+
+
 def qd_dark_plan(sweep):
     """Only the dark sweep: no light at all."""
     yield from dark_sweep(sweep)
@@ -121,6 +229,8 @@ def qd_dark_plan(sweep):
 def make_plan(campaign, *, timing=None, mount=None):
     if campaign.plan == "qd-dark":
         return qd_dark_plan(campaign.qd_dark)
+    if campaign.plan == "qd-physical":
+        return qd_physical_plan(campaign.qd_physical, mount=mount if mount is not None else StageGeometry(0.0))
     return qd_grid_plan(campaign.qd_grid, mount=mount if mount is not None else StageGeometry(0.0))
 
 
@@ -183,7 +293,7 @@ def c_header(document: dict) -> str:
 
 FAMILY = register(Family(
     name="qd", title="Quadrant-photodiode sun sensor (seed 002)", descriptor=DESCRIPTOR,
-    plans=("qd-grid", "qd-dark"), read=read, dry_reading=dry_reading, summary=summary, status=status,
+    plans=("qd-grid", "qd-physical", "qd-dark"), read=read, dry_reading=dry_reading, summary=summary, status=status,
     make_plan=make_plan, fit_run=fit_run, fit_inputs=fit_inputs, results_view="qd",
     export_csv=export_csv, c_header=c_header, sensor_kinds=("qd",)))
 

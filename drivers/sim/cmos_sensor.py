@@ -13,6 +13,7 @@ import numpy as np
 from calibration.centroid import CentroidError, MultipleSpotsError, NoSpotError, SaturatedSpotError, find_spot
 
 from .. import cmos_protocol as wire
+from ..framed_protocol import FramedResponder
 from .device import SimDevice
 from .sensor_optics import DetectorSpec, SpotRenderer
 from .world import SimWorld
@@ -23,10 +24,11 @@ EXPOSURE_RANGE_US = (10, 1_000_000)
 LINE_TIME_US = 10  # exposure is set in whole lines
 
 
-class CmosSensorSimulator(SimDevice):
-    """The CMOS module on the simulated bench."""
+class CmosSensorSimulator(FramedResponder, SimDevice):
+    """The CMOS module on the simulated bench (its frame loop: :class:`drivers.framed_protocol.FramedResponder`)."""
 
     name = "cmos-sensor"
+    frame_format = wire.FORMAT
 
     def __init__(self, world: SimWorld, detector: DetectorSpec = DetectorSpec()):
         super().__init__()
@@ -37,45 +39,12 @@ class CmosSensorSimulator(SimDevice):
         self._held: list[tuple[float, bytes]] = []  # (ready time, reply) of captures in progress
         self.frames = 0
 
-    # -- framing ---------------------------------------------------------------------------------------
-    def handle(self, inbuf: bytearray) -> bytes:
-        out = bytearray()
-        while inbuf:
-            try:
-                frame, used = wire.decode_frame(inbuf)
-            except wire.FrameError as exc:
-                bad_crc = str(exc) == "CRC mismatch" and len(inbuf) >= 4
-                sequence = inbuf[3] if bad_crc else 0
-                del inbuf[: max(exc.consumed, 1)]
-                if bad_crc:
-                    out += self._error(sequence, 3, "CRC mismatch")
-                continue
-            if frame is None:
-                break
-            del inbuf[:used]
-            out += self._dispatch(frame)
-        return bytes(out)
-
-    def _reply(self, command: int, sequence: int, payload: bytes) -> bytes:
-        raw = wire.encode_frame(command | wire.REPLY, sequence, payload)
-        if self.corrupt_crc > 0:
-            self.corrupt_crc -= 1
-            raw = raw[:-1] + bytes([raw[-1] ^ 0xFF])
-        return raw
-
-    def _error(self, sequence: int, code: int, message: str) -> bytes:
-        return wire.encode_frame(wire.ERROR, sequence, bytes([code]) + message.encode())
-
-    def _dispatch(self, frame: wire.Frame) -> bytes:
-        handler = {
-            wire.IDENTIFY: self._identify, wire.SET_EXPOSURE: self._set_exposure, wire.GET_EXPOSURE: self._get_exposure,
-            wire.CAPTURE: self._capture, wire.CENTROID: self._centroid, wire.TEMPERATURE: self._temperature,
-        }.get(frame.code)
-        if handler is None:
-            return self._error(frame.sequence, 1, f"unknown command 0x{frame.code:02X}")
-        return handler(frame)
-
     # -- commands --------------------------------------------------------------------------------------
+    def _commands(self):
+        return {wire.IDENTIFY: self._identify, wire.SET_EXPOSURE: self._set_exposure,
+                wire.GET_EXPOSURE: self._get_exposure, wire.CAPTURE: self._capture, wire.CENTROID: self._centroid,
+                wire.TEMPERATURE: self._temperature}
+
     def _identify(self, frame):
         design = self.world.sensor.design
         payload = wire.IDENTITY.pack(wire.pad(MODEL, 16), wire.pad(self.world.sensor.serial, 16), wire.pad(FIRMWARE, 8),
@@ -84,10 +53,10 @@ class CmosSensorSimulator(SimDevice):
 
     def _set_exposure(self, frame):
         if len(frame.payload) != wire.EXPOSURE.size:
-            return self._error(frame.sequence, 2, "SET_EXPOSURE takes a u32")
+            return self._error(frame.sequence, wire.BAD_LENGTH, "SET_EXPOSURE takes a u32")
         (us,) = wire.EXPOSURE.unpack(frame.payload)
         if not EXPOSURE_RANGE_US[0] <= us <= EXPOSURE_RANGE_US[1]:
-            return self._error(frame.sequence, 4, f"exposure {us} us outside {EXPOSURE_RANGE_US}")
+            return self._error(frame.sequence, wire.OUT_OF_RANGE, f"exposure {us} us outside {EXPOSURE_RANGE_US}")
         self.exposure_us = max(LINE_TIME_US, round(us / LINE_TIME_US) * LINE_TIME_US)
         return self._reply(frame.code, frame.sequence, wire.EXPOSURE.pack(self.exposure_us))
 
@@ -102,17 +71,14 @@ class CmosSensorSimulator(SimDevice):
         return image
 
     def _hold(self, reply: bytes) -> bytes:
-        ready = self.world.clock.now() + (self.exposure_us / 1000.0 + self.renderer.spec.readout_ms) / 1000.0
-        if self.world.clock.instant:
-            self.world.clock.advance_to(ready)
-            return reply
-        self._held.append((ready, reply))
-        return b""
+        """`reply` once the exposure and the read-out are over."""
+        return self._hold_until(
+            self.world.clock.now() + (self.exposure_us / 1000.0 + self.renderer.spec.readout_ms) / 1000.0, reply)
 
     def _capture(self, frame):
         packing = frame.payload[0] if frame.payload else wire.RAW16
         if packing not in (wire.RAW16, wire.PACKED10):
-            return self._error(frame.sequence, 4, f"packing {packing}")
+            return self._error(frame.sequence, wire.OUT_OF_RANGE, f"packing {packing}")
         image = self._expose()
         h, w = image.shape
         pixels = image.astype("<u2").tobytes() if packing == wire.RAW16 else wire.pack10(image)
@@ -138,18 +104,5 @@ class CmosSensorSimulator(SimDevice):
         return self._hold(self._reply(frame.code, frame.sequence, payload))
 
     def _temperature(self, frame):
-        centi = int(round(self.world.temperature_c * 100))
-        return self._reply(frame.code, frame.sequence, wire.TEMPERATURE_REPLY.pack(max(min(centi, 32767), -32768)))
-
-    # -- time-driven output --------------------------------------------------------------------------------
-    def unsolicited(self) -> bytes:
-        if not self._held:
-            return b""
-        now = self.world.clock.now()
-        ready = [r for t, r in self._held if t <= now]
-        self._held = [(t, r) for t, r in self._held if t > now]
-        return b"".join(ready)
-
-    def reset_link(self) -> None:
-        super().reset_link()
-        self._held.clear()
+        payload = wire.TEMPERATURE_REPLY.pack(wire.centi(self.world.temperature_c))
+        return self._reply(frame.code, frame.sequence, payload)

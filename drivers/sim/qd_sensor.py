@@ -22,6 +22,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from .. import qd_protocol as wire
+from ..framed_protocol import FramedResponder
 from .device import SimDevice
 from .qd_optics import ChannelFaults, QdOptics, QdTruth, TecModel, sample_counts
 from .world import SimWorld
@@ -79,8 +80,8 @@ class QdSensorConfig(BaseModel):
         return QdTruth(**self.model_dump())
 
 
-class QdSensorSimulator(SimDevice):
-    """The QD module on the simulated bench.
+class QdSensorSimulator(FramedResponder, SimDevice):
+    """The QD module on the simulated bench (its frame loop: :class:`drivers.framed_protocol.FramedResponder`).
 
     Parameters
     ----------
@@ -90,6 +91,7 @@ class QdSensorSimulator(SimDevice):
     """
 
     name = "qd-sensor"
+    frame_format = wire.FORMAT
 
     def __init__(self, world: SimWorld, truth: QdTruth | QdSensorConfig | None = None):
         super().__init__()
@@ -140,44 +142,14 @@ class QdSensorSimulator(SimDevice):
         return self.optics.photocurrents_a(zenith, azimuth, irradiance, self.world.bench.source_diameter_deg)
 
     # -- framing -------------------------------------------------------------------------------------------
-    def handle(self, inbuf: bytearray) -> bytes:
-        out = bytearray()
-        while inbuf:
-            try:
-                frame, used = wire.decode_frame(inbuf)
-            except wire.CrcMismatch as exc:
-                sequence = inbuf[3]
-                del inbuf[: max(exc.consumed, 1)]
-                out += self._error(sequence, wire.BAD_CRC, "CRC mismatch")
-                continue
-            except wire.FrameError as exc:
-                del inbuf[: max(exc.consumed, 1)]
-                continue
-            if frame is None:
-                break
-            del inbuf[:used]
-            out += self._dispatch(frame)
-        return bytes(out)
-
-    def _reply(self, command: int, sequence: int, payload: bytes) -> bytes:
-        raw = wire.encode_frame(command | wire.REPLY, sequence, payload)
-        if self.corrupt_crc > 0:
-            self.corrupt_crc -= 1
-            raw = raw[:-1] + bytes([raw[-1] ^ 0xFF])
-        return raw
-
-    def _error(self, sequence: int, code: int, message: str) -> bytes:
-        return wire.encode_frame(wire.ERROR, sequence, bytes([code]) + message.encode("ascii", "replace"))
-
     def _dispatch(self, frame: wire.Frame) -> bytes:
         if self._busy():
             return self._error(frame.sequence, wire.NOT_READY, "a READ is in progress")
-        handler = {wire.IDENTIFY: self._identify, wire.READ: self._read,
-                   wire.SET_TEMPERATURE: self._set_temperature, wire.GET_TEMPERATURE: self._get_temperature,
-                   }.get(frame.code)
-        if handler is None:
-            return self._error(frame.sequence, wire.UNKNOWN_COMMAND, f"unknown command 0x{frame.code:02X}")
-        return handler(frame)
+        return super()._dispatch(frame)
+
+    def _commands(self):
+        return {wire.IDENTIFY: self._identify, wire.READ: self._read,
+                wire.SET_TEMPERATURE: self._set_temperature, wire.GET_TEMPERATURE: self._get_temperature}
 
     def _busy(self) -> bool:
         now = self.world.clock.now()
@@ -219,14 +191,7 @@ class QdSensorSimulator(SimDevice):
         self.samples += n
         payload = wire.READ_REPLY.pack(n, flags, *(int(s) for s in counts.sum(axis=0)), wire.centi(thermometer),
                                        self.samples & 0xFFFFFFFF)
-        return self._hold(start + duration_s, self._reply(frame.code, frame.sequence, payload))
-
-    def _hold(self, ready: float, reply: bytes) -> bytes:
-        if self.world.clock.instant:
-            self.world.clock.advance_to(ready)
-            return reply
-        self._held.append((ready, reply))
-        return b""
+        return self._hold_until(start + duration_s, self._reply(frame.code, frame.sequence, payload))
 
     def _status(self, frame) -> bytes:
         t = self.truth
@@ -254,16 +219,3 @@ class QdSensorSimulator(SimDevice):
         if self.world.clock.instant:
             self.world.clock.advance_to(self.tec.settle_time_s())
         return self._status(frame)
-
-    # -- time-driven output --------------------------------------------------------------------------------
-    def unsolicited(self) -> bytes:
-        if not self._held:
-            return b""
-        now = self.world.clock.now()
-        ready = [r for t, r in self._held if t <= now]
-        self._held = [(t, r) for t, r in self._held if t > now]
-        return b"".join(ready)
-
-    def reset_link(self) -> None:
-        super().reset_link()
-        self._held.clear()

@@ -93,7 +93,7 @@ def test_the_qd_plan_expands_to_the_same_keys_and_counts_its_cap():
     assert [p.key for p in first.points] == [p.key for p in again.points]
     assert len(first.points) == campaign.planned_points() == 81 + 64 + 2
     assert first.duration_s > 2 * 180.0  # two temperature set-points are in the estimate
-    assert family("qd").plans == ("qd-grid", "qd-dark")
+    assert family("qd").plans == ("qd-grid", "qd-physical", "qd-dark")
 
 
 def test_a_cmos_plan_on_a_qd_bench_is_refused_before_anything_moves(qd_session):
@@ -160,3 +160,21 @@ def test_a_killed_qd_run_resumes_to_a_complete_lineage_and_is_fitted(tmp_path):
         counts = collections.Counter(p["key"] for p in cat.points(lineage))
         assert set(counts) == planned and max(counts.values()) == 1  # complete, nothing measured twice
         assert {c["method"] for c in cat.calibrations(final)} == {"geometric", "polynomial", "physical"}
+
+
+def test_the_physical_short_plan_stops_early_and_keeps_the_accuracy(qd_session):
+    """The qd-physical plan: nested grids from coarse to fine, fitted after each and scored on check directions it
+    never fits; on the simulated module the coarsest grid already meets the targets."""
+    campaign = Campaign(name="qd-short", plan="qd-physical", sensors=("QD-0001",))
+    dry = preflight_campaign(campaign, check=lambda a, z: None)
+    assert len(dry.points) == campaign.planned_points() == 17 * 17 + 16 + 4 and dry.upper_bound
+    (run_id,) = run_campaign(campaign, qd_session)
+    catalogue = qd_session.catalogue
+    run = catalogue.run(run_id)
+    assert run["status"] == "completed", run["exit_reason"]
+    stop = catalogue.run_value(run_id, "qd_physical_stop")
+    assert stop["stop"] and stop["check_max_deg"] <= 0.02 and stop["check_rms_deg"] <= 0.01
+    assert run["n_points_recorded"] < len(dry.points) / 4  # the short plan: a fraction of the finest grid
+    chosen = next(c for c in catalogue.calibrations(run_id) if c["chosen"])
+    heldout = chosen["metrics"]["heldout"]
+    assert heldout["max_deg"] <= 0.1 and heldout["rms_deg"] <= 0.03

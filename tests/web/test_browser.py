@@ -870,7 +870,7 @@ def test_a_qd_campaign_from_the_launcher_to_its_results_view(browser, tmp_path):
             expect(page.locator("#frame-section")).to_be_hidden()
             page.goto("/launch")
             options = page.eval_on_selector_all("select[name=plan] option", "os => os.map(o => o.value)")
-            assert options == ["qd-grid", "qd-dark"]  # the bench's family's plans only
+            assert options == ["qd-grid", "qd-physical", "qd-dark"]  # the bench's family's plans only
             expect(page.locator("fieldset[data-plan='qd-grid']")).to_be_visible()
             expect(page.locator("label[data-frames]")).to_be_hidden()  # a photodiode keeps no frame
             page.fill("fieldset[data-plan='qd-grid'] input[name=step_deg]", "10")

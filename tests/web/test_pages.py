@@ -11,7 +11,14 @@ import numpy as np
 import pytest
 from inprocess import AUTH, TOKEN, api_client
 
-from bench.campaign import Campaign, PhysicalProcedure, QdDarkSweep, QdGridProcedure, Seed003Procedure
+from bench.campaign import (
+    Campaign,
+    PhysicalProcedure,
+    QdDarkSweep,
+    QdGridProcedure,
+    QdPhysicalProcedure,
+    Seed003Procedure,
+)
 from calibration.models import METHODS
 from calibration.models.physical import FITTED
 from web.routes.pages import PAGES, STATIC_DIR
@@ -231,15 +238,16 @@ def _limits(field) -> tuple[float | None, float | None]:
 def test_the_launcher_offers_the_seed003_physical_and_qd_plans(client):
     # the page holds every plan's fieldset; launch.js keeps those of the bench's family (its <body data-plans>)
     form = _launch_form(client)
-    assert form.options == ["seed003", "physical", "qd-grid", "qd-dark"]
+    assert form.options == ["seed003", "physical", "qd-grid", "qd-physical", "qd-dark"]
     assert set(form.options) <= set(typing.get_args(Campaign.model_fields["plan"].annotation))
     # one fieldset per plan, named as the plan (its data-field names Campaign's field: qd_grid for qd-grid)
-    assert set(form.inputs) == {None, "seed003", "physical", "qd-grid", "qd-dark"}
+    assert set(form.inputs) == {None, "seed003", "physical", "qd-grid", "qd-physical", "qd-dark"}
     assert {"name", "operator", "sensors"} <= set(form.inputs[None]) and {"plan", "frames"} <= form.selects
 
 
 @pytest.mark.parametrize("plan, model", [("seed003", Seed003Procedure), ("physical", PhysicalProcedure),
-                                         ("qd-grid", QdGridProcedure), ("qd-dark", QdDarkSweep)])
+                                         ("qd-grid", QdGridProcedure), ("qd-physical", QdPhysicalProcedure),
+                                         ("qd-dark", QdDarkSweep)])
 def test_every_field_of_the_launcher_has_the_models_default_and_limits(client, plan, model):
     inputs = _launch_form(client).inputs[plan]
     targets = {name.split(".", 1)[1] for name in inputs if name.startswith("parameter_targets.")}
@@ -255,6 +263,8 @@ def test_every_field_of_the_launcher_has_the_models_default_and_limits(client, p
                            "check_rms_target_deg", "parameter_budget_deg", "zenith_max_deg", "zenith_step_deg",
                            "azimuth_step_deg", "edge_margin_px"},
               "qd-grid": {"field_deg", "step_deg", "repeats", "check_points", "temperature_c"},  # + dark.* (test_qd.py)
+              "qd-physical": {"field_deg", "steps_deg", "check_directions", "repeats", "check_max_target_deg",
+                              "check_rms_target_deg", "temperature_c"},
               "qd-dark": {"temperatures_c", "repeats", "tolerance_c"}}[plan]
     assert fields == wanted
     for name in fields:

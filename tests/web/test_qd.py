@@ -45,13 +45,15 @@ def finished(tmp_path_factory):
 def test_the_status_and_the_pages_say_the_bench_is_a_qd_bench_and_its_plans(qd_client):
     status = _wait_for(lambda: (s := _get(qd_client, "/api/status"))["sensor"] and s, "the sensor's status")
     bench = status["bench"]
-    assert (bench["family"], bench["plans"], bench["has_frames"]) == ("qd", ["qd-grid", "qd-dark"], False)
+    assert (bench["family"], bench["plans"], bench["has_frames"]) == ("qd", ["qd-grid", "qd-physical", "qd-dark"],
+                                                                      False)
     assert bench["simulated"] is True and "seed 002" in bench["family_title"]
     sensor = status["sensor"]
     assert sensor["family"] == "qd" and len(sensor["currents_a"]) == 4 and sensor["exposure_ms"] is None
     for path in ("/", "/launch", "/run", "/results", "/fleet"):
         body = re.search(r"<body[^>]*>", qd_client.get(path).text).group()
-        assert 'data-family="qd"' in body and 'data-plans="qd-grid qd-dark"' in body and 'data-frames="false"' in body
+        assert 'data-family="qd"' in body and 'data-plans="qd-grid qd-physical qd-dark"' in body
+        assert 'data-frames="false"' in body
     assert qd_client.get("/api/frame.png", headers=AUTH).status_code == 404  # a photodiode takes no frame
 
 
