@@ -168,7 +168,7 @@ class QdDarkSweep(_Strict):
 
 class QdGridProcedure(_Strict):
     """Seed 002's calibration: a square grid of the sensor's projection angles α, β over ±`field_deg` (the
-    thesis' field is ±40°), set through the table's kinematics (calibration.qd.angles), with check points at
+    thesis' field is ±40°), set through the table's kinematics (calibration.mount), with check points at
     the centres of the grid's cells, never fitted (the thesis warns that the error between nodes can exceed
     the error at them), after the dark sweep."""
 
@@ -179,14 +179,15 @@ class QdGridProcedure(_Strict):
     temperature_c: float | None = Field(25.0, ge=-40, le=70)  # the die's temperature during the grid; None: TEC off
     dark: QdDarkSweep = QdDarkSweep()
 
-    @property
-    def nodes_deg(self) -> tuple[float, ...]:
-        """Grid nodes along each axis [°], symmetric about 0 and reaching ±field_deg."""
-        n = int(round(2 * self.field_deg / self.step_deg))
-        return tuple(float(-self.field_deg + 2 * self.field_deg * i / n) for i in range(n + 1))
+    @model_validator(mode="after")
+    def _step_divides_the_field(self):
+        if abs(self.field_deg / self.step_deg - round(self.field_deg / self.step_deg)) > 1e-9:
+            raise ValueError(f"the step must divide the field, so the grid reaches ±{self.field_deg:g}° exactly: "
+                             f"{self.field_deg:g}° / {self.step_deg:g}° is not whole")
+        return self
 
     def points(self) -> int:
-        k = len(self.nodes_deg)
+        k = 2 * int(round(self.field_deg / self.step_deg)) + 1  # the nodes along an axis (calibration.mount)
         return k * k + (k - 1) ** 2 * self.check_points + len(self.dark.temperatures_c)
 
 

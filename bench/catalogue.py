@@ -105,10 +105,23 @@ def _in(values) -> str:
     return "(" + ", ".join(repr(v) for v in values) + ")"
 
 
+def _move_v1_readings(conn: sqlite3.Connection) -> None:
+    """Schema 2: version 1's spot columns into each reading's values, as JSON that keeps every float exactly
+    (SQLite's json_object() writes 15 significant digits: a centroid would lose its last bits)."""
+    rows = conn.execute("SELECT id, point_id, repeat, status, frame_path, t_s, x_px, y_px, peak_dn, n_pixels, flags "
+                        "FROM readings ORDER BY id").fetchall()
+    conn.executemany(
+        "INSERT INTO readings_v2 (id, point_id, repeat, status, frame_path, t_s, values_json) "
+        "VALUES (?, ?, ?, ?, ?, ?, ?)",
+        [(*tuple(r)[:6], json.dumps(dict(zip(("x_px", "y_px", "peak_dn", "n_pixels", "flags"), tuple(r)[6:]))))
+         for r in rows])
+
+
 # --- schema ---------------------------------------------------------------------------------------------
-# _MIGRATIONS[v] takes a file from version v-1 to version v. Never edit a released entry: add the next one
+# _MIGRATIONS[v] takes a file from version v-1 to version v: SQL statements, or a function of the connection for
+# a step SQL cannot do exactly. Never edit a released entry: add the next one
 # (ALTER TABLE, new tables, data moves), so old files upgrade in place when a newer sunbench opens them.
-_MIGRATIONS: dict[int, tuple[str, ...]] = {
+_MIGRATIONS: dict[int, tuple] = {
     1: (
         """CREATE TABLE schema_history (
             version INTEGER PRIMARY KEY,
@@ -225,10 +238,7 @@ _MIGRATIONS: dict[int, tuple[str, ...]] = {
             values_json TEXT NOT NULL,
             UNIQUE (point_id, repeat)
         )""",
-        """INSERT INTO readings_v2 (id, point_id, repeat, status, frame_path, t_s, values_json)
-           SELECT id, point_id, repeat, status, frame_path, t_s,
-                  json_object('x_px', x_px, 'y_px', y_px, 'peak_dn', peak_dn, 'n_pixels', n_pixels, 'flags', flags)
-           FROM readings""",
+        _move_v1_readings,
         "DROP TABLE readings",
         "ALTER TABLE readings_v2 RENAME TO readings",
         "CREATE INDEX runs_by_family ON runs(family)",
@@ -451,7 +461,10 @@ class Catalogue:
         with self._write(f"upgrade the schema from version {version} to {SCHEMA_VERSION}") as conn:
             for target in range(version + 1, SCHEMA_VERSION + 1):
                 for statement in _MIGRATIONS[target]:
-                    conn.execute(statement)
+                    if callable(statement):
+                        statement(conn)
+                    else:
+                        conn.execute(statement)
                 conn.execute("INSERT INTO schema_history (version, applied_utc) VALUES (?, ?)", (target, utc_now()))
             conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
             conn.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")

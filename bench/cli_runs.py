@@ -65,9 +65,11 @@ class _ProgressView:
         elif event.kind in ("paused", "suspended"):
             self.progress.console.print(f"[yellow]{event.kind}:[/] {escape(event.data.get('reason', ''))}")
         elif event.kind == "warning":
-            self.progress.console.print(f"[yellow]warning:[/] {escape(event.data.get('message', ''))}")
+            self.progress.console.print(f"[yellow]warning:[/] {escape(event.message)}")
         elif event.kind == "unsafe":
-            self.progress.console.print(f"[bold red]{escape(event.data.get('message', ''))}[/]")
+            self.progress.console.print(f"[bold red]{escape(event.message)}[/]")
+        elif event.kind == "fit":  # what the fits at the run's end found (bench.families, journal)
+            self.progress.console.print(f"fit: {escape(event.message)}", highlight=False)
 
 
 def _abort_on_signals(engine):

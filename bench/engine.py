@@ -306,6 +306,11 @@ class RunEngine:
         if self._estop:
             raise EstopLatched(LATCHED)
 
+    def journal(self, kind: str, message: str) -> None:
+        """A journaled event of the run in progress (the fits at its end say what they found through it, so the
+        journal, the event stream and the CLI's progress all hear it)."""
+        self._emit(kind, message=message, journal=True)
+
     def _journal(self, kind: str, message: str) -> None:
         """Journal an event of the run in progress, or of the bench (no run); never raises."""
         try:
@@ -570,9 +575,11 @@ class RunEngine:
         self._emit("sensor", exposure_ms=exposure)
         return exposure
 
-    def _on_set_temperature(self, msg: SetTemperature) -> float:
+    def _on_set_temperature(self, msg: SetTemperature) -> float | None:
         """Set the sensor's temperature (its on-board thermal control) and wait until it is within the
         tolerance, watching for an abort; answers the temperature reached [°C]."""
+        if msg.for_points and all(key in self._done for key in msg.for_points):
+            return None  # a resumed run: the readings this temperature is for are recorded
         sensor = self.devices.sensor
         sensor.set_temperature_setpoint_c(msg.temperature_c)
         wall0, bench0 = time.monotonic(), self.clock()

@@ -126,11 +126,14 @@ class SetExposure(Msg):
 @dataclass(frozen=True)
 class SetTemperature(Msg):
     """Set the sensor's temperature (its on-board thermal control) and wait until it is within `tolerance_c`;
-    the answer is the temperature reached [°C]. A sensor still off after `timeout_s` faults the run."""
+    the answer is the temperature reached [°C]. A sensor still off after `timeout_s` faults the run. When every
+    point of `for_points` is already recorded (a resumed run), nothing is set and the answer is None: minutes of
+    waiting on a thermal controller for readings that are kept."""
 
     temperature_c: float
     tolerance_c: float = 0.2
     timeout_s: float = 900.0
+    for_points: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

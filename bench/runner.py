@@ -146,7 +146,8 @@ def bench_data(catalogue, run_ids, *, sensor_id: str | None = None) -> BenchData
                      exposure_ms=pose("exposure_ms"), frame_id=np.array([r.id for r in rows]))
 
 
-def fit_run(catalogue, run_id: int, methods, design=None, geometry: GeometryPrior | None = None) -> list:
+def fit_run(catalogue, run_id: int, methods, design=None, geometry: GeometryPrior | None = None, *,
+            journal=None) -> list:
     """Fit every method to the run's lineage; keep each calibration, the best held-out one as chosen.
 
     Repeats are combined robustly and the rejected frames named (by reading id) in every calibration document,
@@ -155,6 +156,7 @@ def fit_run(catalogue, run_id: int, methods, design=None, geometry: GeometryPrio
     bench geometry is fitted jointly from the recorded stage angles instead of taken as the bench believes it.
     """
     design = design or DEFAULT_SENSOR
+    journal = journal or (lambda kind, message: catalogue.log_event(run_id, kind, message))
     run = catalogue.run(run_id)
     lineage = catalogue.lineage(run_id)
     data = bench_data(catalogue, lineage, sensor_id=run["sensor_id"])
@@ -172,15 +174,15 @@ def fit_run(catalogue, run_id: int, methods, design=None, geometry: GeometryPrio
                                         software=software_version(), outcome=outcome, design=design)
         document.pop("created_utc", None)  # the catalogue stamps its own time
         catalogue.add_calibration(run_id, report.method, document, report.to_dict(), report is chosen)
-    catalogue.log_event(run_id, "fit", f"fitted {len(data)} frames; chosen {chosen.method}, held-out vector RMS "
+    journal("fit", f"fitted {len(data)} frames; chosen {chosen.method}, held-out vector RMS "
                                        f"{chosen.heldout.rms_vector_deg:.4f}°" if chosen.heldout else
                         f"fitted {len(data)} frames; chosen {chosen.method}")
     if outcome.rejected:
-        catalogue.log_event(run_id, "fit", f"{len(outcome.rejected)} frame(s) rejected: "
+        journal("fit", f"{len(outcome.rejected)} frame(s) rejected: "
                             + "; ".join(r.describe() for r in outcome.rejected[:10])
                             + (" …" if len(outcome.rejected) > 10 else ""))
     for warning in outcome.warnings:
-        catalogue.log_event(run_id, "fit", f"warning: {warning}")
+        journal("fit", f"warning: {warning}")
     return outcome.reports
 
 
@@ -366,7 +368,8 @@ def _execute(session: Session, campaign: Campaign, run_id: int, n_points: int, *
     plan = family.make_plan(campaign, timing=timing_model(session), mount=session_mount(session))
     return session.engine.execute(plan, run_id=run_id,
                                   done_keys=done, lineage=lineage, n_points=n_points,
-                                  on_completed=lambda: family.fit_run(catalogue, run_id, campaign, inputs))
+                                  on_completed=lambda: family.fit_run(catalogue, run_id, campaign, inputs,
+                                                                      session.engine.journal))
 
 
 def fit_inputs(session: Session):

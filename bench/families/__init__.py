@@ -46,8 +46,8 @@ class Family:
         ``make_plan(campaign, *, timing, mount) -> Plan``: `mount` is the table's kinematics
         (:func:`table_mount`), for plans set in the sensor's own angles.
     fit_run : callable
-        ``fit_run(catalogue, run_id, campaign, inputs) -> list``: the fits when a run ends (`inputs` from
-        `fit_inputs`).
+        ``fit_run(catalogue, run_id, campaign, inputs, journal) -> list``: the fits when a run ends (`inputs`
+        from `fit_inputs`; what they found goes to ``journal(kind, message)``, the engine's journaled events).
     fit_inputs : callable
         ``fit_inputs(session) -> Any``: what the fits need of the bench (design, geometry prior …).
     results_view : str

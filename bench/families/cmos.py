@@ -81,10 +81,10 @@ def fit_inputs(session):
     return cmos_inputs(session)
 
 
-def fit_run(catalogue, run_id: int, campaign, inputs) -> list:
+def fit_run(catalogue, run_id: int, campaign, inputs, journal=None) -> list:
     from ..runner import fit_run as cmos_fit
     design, geometry = inputs
-    return cmos_fit(catalogue, run_id, campaign.methods or METHODS, design, geometry)
+    return cmos_fit(catalogue, run_id, campaign.methods or METHODS, design, geometry, journal=journal)
 
 
 def export_csv(catalogue, run_ids, target, sensor_id: str | None) -> None:

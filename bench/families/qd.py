@@ -91,10 +91,11 @@ def dark_sweep(sweep):
     yield CloseShutter()
     readings = []
     for t in sweep.temperatures_c:
-        reached = yield SetTemperature(float(t), sweep.tolerance_c)
+        point = Point(f"{DARK}_t{float(t):+07.2f}", DARK, 0.0, 0.0, sweep.repeats)
+        reached = yield SetTemperature(float(t), sweep.tolerance_c, for_points=(point.key,))
         yield Log(f"dark sweep: the die is at {reached:.2f} °C" if reached is not None else
-                  f"dark sweep: {t:g} °C")
-        readings += (yield Measure(Point(f"{DARK}_t{float(t):+07.2f}", DARK, 0.0, 0.0, sweep.repeats))) or []
+                  f"dark sweep: {t:g} °C, already recorded")
+        readings += (yield Measure(point)) or []
     return readings
 
 
@@ -255,12 +256,14 @@ def fit_inputs(session):
     return DEFAULT_QD
 
 
-def fit_run(catalogue, run_id: int, campaign, design) -> list:
-    """Fit every QD method to the run's lineage; keep each calibration, the best held-out one as chosen."""
+def fit_run(catalogue, run_id: int, campaign, design, journal=None) -> list:
+    """Fit every QD method to the run's lineage; keep each calibration, the best held-out one as chosen; what it
+    found goes to `journal(kind, message)` (the engine's journaled events, which the CLI and the stream see)."""
+    journal = journal or (lambda kind, message: catalogue.log_event(run_id, kind, message))
     run = catalogue.run(run_id)
     data = bench_data(catalogue, catalogue.lineage(run_id), sensor_id=run["sensor_id"])
     if campaign.plan == "qd-dark":
-        return []  # a dark sweep alone calibrates no direction; its readings wait for a grid run
+        return []  # a dark sweep alone calibrates no direction (the results page fits its dark current)
     outcome = calibrate_qd(data, methods=campaign.methods, design=design)
     for report in outcome.reports:
         if report.document is None:
@@ -270,14 +273,14 @@ def fit_run(catalogue, run_id: int, campaign, design) -> list:
         catalogue.add_calibration(run_id, report.method, document, report.to_dict(), report is outcome.chosen)
     chosen = outcome.chosen
     held = chosen.heldout
-    catalogue.log_event(run_id, "fit", f"fitted {len(outcome.directions)} directions; chosen {chosen.method}"
+    journal("fit", f"fitted {len(outcome.directions)} directions; chosen {chosen.method}"
                         + (f", held-out max {held.max_deg:.4f}°, RMS {held.rms_deg:.4f}°" if held else ""))
     if outcome.rejected:
-        catalogue.log_event(run_id, "fit", f"{len(outcome.rejected)} reading(s) rejected: "
+        journal("fit", f"{len(outcome.rejected)} reading(s) rejected: "
                             + "; ".join(r.describe() for r in outcome.rejected[:10])
                             + (" …" if len(outcome.rejected) > 10 else ""))
     for warning in outcome.warnings:
-        catalogue.log_event(run_id, "fit", f"warning: {warning}")
+        journal("fit", f"warning: {warning}")
     return outcome.reports
 
 

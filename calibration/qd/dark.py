@@ -268,7 +268,7 @@ def fit_dark_exponential(temperature_c, currents_a) -> DarkModel:
             if best is None or rss < best[0]:
                 best = (rss, coef[0], coef[1], b)
         _, a0, c0, b0 = best
-        scale = max(float(np.max(np.abs(y))), 1e-300)
+        scale = max(float(np.max(np.abs(y))), 1e-15)  # a quadrant that reads 0 A dark (an ADC clipped at 0)
 
         def residual(p):  # called only by the least_squares just below, within this iteration
             return (p[0] + p[1] * np.exp(p[2] * (t - t_ref)) - y) / scale  # noqa: B023

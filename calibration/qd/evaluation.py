@@ -510,7 +510,9 @@ def _screen_directions(points: QdDirections, photo: np.ndarray, design: QdDesign
     """Step 4 of the module docstring: a robust physical fit; isolated spikes of its residual are rejected.
 
     In a rejected direction with several readings, the readings that agree with the model are kept (a glint
-    in one of two repeats costs that reading only).
+    in one of two repeats costs that reading only). Only fitted (node) directions are screened: a check
+    direction is held out, and dropping it for disagreeing with a model would let the model choose the points it
+    is scored on (a check direction gets only the model-free repeat test of :func:`_directions`).
     """
     nodes = ~points.check
     if nodes.sum() < 12:
@@ -529,7 +531,7 @@ def _screen_directions(points: QdDirections, photo: np.ndarray, design: QdDesign
     near = np.argsort(dist, axis=1)[:, :8]
     local = np.maximum(np.median(resid[near], axis=1), base)
     limit = np.maximum(OUTLIER_SIGMAS * 1.4826 * local, OUTLIER_FLOOR_SHARE)
-    bad = resid > limit
+    bad = (resid > limit) & nodes
     if not bad.any():
         return points
     if bad.mean() > SCREEN_MAX_SHARE:

@@ -119,7 +119,7 @@ def test_a_version_1_file_keeps_its_cmos_readings_as_family_values(db, monkeypat
         cat._conn.execute("INSERT INTO points (run_id, key, stage, azimuth_deg, zenith_stage_deg, zenith_deg, "
                           "azimuth_body_deg, completed_utc) VALUES (1, 'p', 'grid', 45, 10, 10.2, 44.9, 'now')")
         cat._conn.execute("INSERT INTO readings (point_id, repeat, x_px, y_px, peak_dn, n_pixels, flags, status, t_s) "
-                          "VALUES (1, 0, 320.5, 240.25, 700, 25, 4, 'ok', 1.5), "
+                          "VALUES (1, 0, 320.123456789012345, 240.25, 700, 25, 4, 'ok', 1.5), "
                           "(1, 1, NULL, NULL, 1023, 0, 0, 'SaturatedSpotError', 2.0)")
         cat._conn.commit()
     monkeypatch.undo()
@@ -127,7 +127,8 @@ def test_a_version_1_file_keeps_its_cmos_readings_as_family_values(db, monkeypat
         assert cat.schema_version == SCHEMA_VERSION
         assert cat.run(1)["family"] == "cmos" and cat.descriptor(1) == CMOS
         ok, saturated = cat.readings(1)
-        assert ok.values == {"x_px": 320.5, "y_px": 240.25, "peak_dn": 700.0, "n_pixels": 25, "flags": 4}
+        # every bit of a centroid kept (SQLite's json_object() would round it to 15 digits)
+        assert ok.values == {"x_px": 320.123456789012345, "y_px": 240.25, "peak_dn": 700.0, "n_pixels": 25, "flags": 4}
         assert (saturated.status, saturated.value("x_px"), saturated.value("peak_dn")) == ("SaturatedSpotError", None,
                                                                                           1023.0)
 

@@ -4,6 +4,7 @@ engine records is right at the field's corners on both kinds of table."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from bench.benchfile import BenchFile, load_bench_file
@@ -52,6 +53,19 @@ def test_a_qd_campaign_is_recorded_under_its_descriptor_and_meets_the_issue_accu
     assert heldout["max_deg"] <= 0.1 and heldout["rms_deg"] <= 0.03
     assert heldout["n_points"] >= 200  # the check points between the nodes are scored, not only the nodes
     assert chosen["document"]["family"] == "qd"
+
+    # the dark model recovers the module's dark current per quadrant (the simulator's truth: its dark current at
+    # the die's true temperature, plus its pedestal error in counts, which a dark calibration absorbs)
+    from calibration.qd.dark import DarkFit
+
+    dark = DarkFit.from_dict(chosen["document"]["dark"])
+    module = qd_session.devices.sim.devices["sensor"]
+    per_count = np.array(qd_session.devices.sensor.identify().amperes_per_count)
+    for reported_c in (10.0, 20.0, 30.0, 40.0):
+        true = (module.optics.dark_current_a(reported_c - module.truth.thermometer_offset_c)
+                + np.array(module.truth.pedestal_error_counts) * per_count)
+        fitted = dark.current(np.array([reported_c]))[0]
+        assert np.all(np.abs(fitted - true) < np.maximum(5e-12, 0.01 * true)), (reported_c, fitted, true)
 
 
 @pytest.mark.parametrize("table, axis_order", [("apt", "azimuth-on-zenith"), ("lx200", "zenith-on-azimuth")])

@@ -202,7 +202,9 @@ def test_the_metrics_route_gives_every_methods_figures_the_rejected_readings_and
 def test_the_cmos_routes_on_a_qd_run_refuse_or_answer_in_its_terms(finished, tmp_path):
     client, run = finished
     rid = run["id"]
-    assert client.get(f"/api/runs/{rid}/fit", headers=AUTH).status_code == 409
+    for query in ("", "?method=geometric", "?method=physical"):  # refused for its family, whatever the method
+        refused = client.get(f"/api/runs/{rid}/fit{query}", headers=AUTH)
+        assert refused.status_code == 409 and "qd sensor" in refused.text and "/qd/metrics" in refused.text
     # the bench data CSV of a QD run is the one `sunbench fit qd` reads: every ok reading, the dark ones included
     csv = client.get(f"/api/runs/{rid}/data.csv", headers=AUTH)
     assert csv.status_code == 200 and csv.headers["content-type"].startswith("text/csv")

@@ -55,7 +55,12 @@ class FitPublic(_Out):
 def read_fit(run_id: RunId, catalogue: CatalogueDep, method: str | None = None):
     """The run's points (mean spot of each) with their radius from the calibration's centre, the direction
     the calibration gives, and its residuals: what the zenith-vs-radius and residual plots draw.
-    `method` defaults to the chosen calibration."""
+    `method` defaults to the chosen calibration. A spot-sensor (cmos) view: a run of another family is 409 (a QD
+    run's figures are under ``/api/runs/{id}/qd/…``)."""
+    family = catalogue.run(run_id)["family"]
+    if family != "cmos":
+        raise HTTPException(409, f"run {run_id} measured a {family} sensor: its results are not spot fits "
+                                 f"(see /api/runs/{run_id}/{family}/metrics)")
     try:
         return FitPublic(**fit_residuals(catalogue, run_id, method))
     except NoCalibration as exc:
