@@ -193,7 +193,7 @@ class QdGridProcedure(_Strict):
 
 class QdPhysicalProcedure(_Strict):
     """The QD physical model's short plan: nested grids of α, β from coarse to fine (every node of a coarser grid is
-    one of the next), the model fitted after each batch and scored on fixed check directions it never fits; the
+    one of the next), the models fitted after each batch and scored on fixed check directions they never fit; the
     run stops at the first batch whose check figures meet the targets (at most the finest grid's nodes)."""
 
     field_deg: float = Field(40.0, gt=0, le=60)

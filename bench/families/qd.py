@@ -167,8 +167,9 @@ def qd_physical_plan(procedure, *, mount):
 
     1. The dark sweep, with the source off.
     2. Batch 1: the coarsest grid of α, β (every `steps_deg[0]`) and `check_directions` fixed check directions off
-       every grid (:func:`check_directions`); the physical model is fitted to the nodes measured so far
-       (:func:`calibration.qd.evaluation.calibrate_qd`) and scored on the check directions, which it never fits.
+       every grid (:func:`check_directions`); the physical model and the polynomial are fitted to the nodes
+       measured so far (:func:`calibration.qd.evaluation.calibrate_qd`) and the one it would choose is scored on
+       the check directions, which neither fits.
     3. Stop once the check maximum and RMS meet their targets; otherwise the next, finer grid's new nodes.
 
     In preflight nothing is fitted (the dry readings have no direction), so the plan expands to its finest grid:
@@ -205,11 +206,13 @@ def qd_physical_plan(procedure, *, mount):
         data = _bench_data(readings, stages)
         if data is None:
             continue  # preflight: nothing to decide on
-        report = calibrate_qd(data, methods=("physical",)).report("physical")
+        # the method the run's end would choose, judged on the check directions it never fits
+        report = calibrate_qd(data, methods=("physical", "polynomial")).chosen
         check = report.heldout_by_scheme.get("check")
         decision = {"grid_step_deg": step, "n_nodes": int(sum(1 for k in measured if k.startswith(GRID))),
                     "check_max_deg": None if check is None else check.max_deg,
-                    "check_rms_deg": None if check is None else check.rms_deg, "error": report.error}
+                    "check_rms_deg": None if check is None else check.rms_deg, "error": report.error,
+                    "method": report.method}
         decision["stop"] = bool(check is not None and check.max_deg <= procedure.check_max_target_deg
                                 and check.rms_deg <= procedure.check_rms_target_deg)
         yield Record(f"qd_physical_batch_{number}", decision)

@@ -36,14 +36,17 @@ _Quad = tuple[float, float, float, float]
 
 class QdSensorConfig(BaseModel):
     """The simulated QD module (the ``simulation.qd`` section of a bench file): its true build, photometry,
-    dark current, electronics and TEC. Every field is :class:`~drivers.sim.qd_optics.QdTruth`'s, same name,
-    same default; `serial` is the configured module's (other serials of a fleet are drawn around it)."""
+    dark current, electronics and TEC, and the effects a calibration does not model — the diaphragm's thickness,
+    the housing's stray light (bore, window, wall reflectance) and the crosstalk between neighbouring channels
+    (zero turns each off). Every field is :class:`~drivers.sim.qd_optics.QdTruth`'s, same name, same default;
+    `serial` is the configured module's (other serials of a fleet are drawn around it)."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     serial: str = _D.serial
     aperture_diameter_um: float = Field(_D.aperture_diameter_um, gt=0, le=1000)
     height_um: float = Field(_D.height_um, gt=0)
+    diaphragm_thickness_um: float = Field(_D.diaphragm_thickness_um, ge=0)
     detector_side_mm: float = Field(_D.detector_side_mm, gt=0)
     gap_um: float = Field(_D.gap_um, ge=0)
     x0_um: float = _D.x0_um
@@ -51,9 +54,14 @@ class QdSensorConfig(BaseModel):
     alpha0_deg: float = Field(_D.alpha0_deg, ge=-10, le=10)
     beta0_deg: float = Field(_D.beta0_deg, ge=-10, le=10)
     phi0_deg: float = Field(_D.phi0_deg, ge=-45, le=45)
+    bore_radius_mm: float = Field(_D.bore_radius_mm, gt=0)
+    bore_height_mm: float = Field(_D.bore_height_mm, gt=0)
+    window_radius_mm: float = Field(_D.window_radius_mm, gt=0)
+    wall_reflectance: float = Field(_D.wall_reflectance, ge=0, le=1)
     irradiance_w_m2: float = Field(_D.irradiance_w_m2, ge=0)
     responsivity_a_w: float = Field(_D.responsivity_a_w, gt=0)
     quadrant_response: _Quad = _D.quadrant_response
+    crosstalk: _Quad = _D.crosstalk
     dark_na_at_25c: _Quad = _D.dark_na_at_25c
     dark_doubling_c: _Quad = _D.dark_doubling_c
     adc_bits: int = Field(_D.adc_bits, ge=8, le=24)

@@ -1,6 +1,8 @@
 """The QD module driver against its simulator through a sim:// port on a simulated bench (family "qd"):
-the currents follow the table, the lamp and the TEC as the world says."""
+the currents follow the table, the lamp and the TEC as the world says; the effects a calibration does not model
+(the diaphragm's thickness, the housing's stray light, crosstalk between channels) act in the right sense."""
 
+import dataclasses
 import itertools
 import math
 import time
@@ -12,7 +14,15 @@ from drivers import qd_protocol as wire
 from drivers.errors import ChecksumError, DeviceDisconnected, DeviceTimeout, ProtocolError
 from drivers.qd_sensor import QdSensorError, QdSunSensor
 from drivers.sim.bench import SimBench, SimBenchConfig
-from drivers.sim.qd_optics import QdOptics, QdTruth, disc_rect_area, qd_fleet_truth
+from drivers.sim.qd_optics import (
+    QUADRANT_SIGNS,
+    RING_PAIRS,
+    QdOptics,
+    QdTruth,
+    disc_rect_area,
+    lens_rect_area,
+    qd_fleet_truth,
+)
 from drivers.sim.qd_sensor import QdSensorConfig
 from drivers.transport import open_port
 
@@ -42,6 +52,20 @@ def point(world, alpha_deg, beta_deg):
     world.azimuth.move_to(math.degrees(math.atan2(ty, tx)) if tx or ty else 0.0)
     world.zenith.move_to(math.degrees(math.atan(math.hypot(tx, ty))))
     return world.sun_direction_body()
+
+
+def _direction(alpha_deg, beta_deg):
+    """(zenith, azimuth) [°] of the direction of projection angles (α, β)."""
+    s = np.array([math.tan(math.radians(alpha_deg)), math.tan(math.radians(beta_deg)), 1.0])
+    return math.degrees(math.acos(s[2] / np.linalg.norm(s))), math.degrees(math.atan2(s[1], s[0]))
+
+
+def _lens_area(r, delta):
+    """Area of two discs of radius r whose centres are delta apart."""
+    return 2 * r * r * math.acos(delta / (2 * r)) - 0.5 * delta * math.sqrt(4 * r * r - delta * delta)
+
+
+IDEAL = dict(diaphragm_thickness_um=0.0, wall_reflectance=0.0, crosstalk=(0.0, 0.0, 0.0, 0.0))
 
 
 def ratios(i):
@@ -79,10 +103,17 @@ def test_a_fleets_serials_are_built_reproducibly_from_the_serial(qd):
         assert sensor.identify().serial == serial
     a, b = fresh["QD-101"], fresh["QD-102"]
     assert (a.x0_um, a.height_um, a.quadrant_response) != (b.x0_um, b.height_um, b.quadrant_response)
+    assert (a.diaphragm_thickness_um, a.crosstalk, a.wall_reflectance, a.bore_radius_mm) != (
+        b.diaphragm_thickness_um, b.crosstalk, b.wall_reflectance, b.bore_radius_mm)  # and so are the effects
     assert bench.mount_sensor("QD-0001") == SimBenchConfig().qd.truth()  # the configured module is its own
     for k in range(200):  # every fleet build keeps the spot over the centre across ±40° × ±40°
         truth = qd_fleet_truth(QdTruth(), f"FM-{k}")
-        assert truth.centre_margin_um() > 4.0 and abs(truth.height_um - 30.0) <= 1.5
+        # (the thick diaphragm's top opening reaches 2.5·tan 50° µm farther than its mid-plane: ≥ 3.4 µm is left)
+        assert truth.centre_margin_um() > 3.0 and abs(truth.height_um - 30.0) <= 1.5
+        assert abs(truth.diaphragm_thickness_um - QdTruth().diaphragm_thickness_um) < 1.3
+        assert 0 < min(truth.crosstalk) <= max(truth.crosstalk) < 0.01
+        assert 0.3 < truth.wall_reflectance <= 1 and truth.window_radius_mm < truth.bore_radius_mm
+        assert abs(truth.stray_cutoff_deg - QdTruth().stray_cutoff_deg) < 2.0
 
 
 # -- optics ----------------------------------------------------------------------------------------------
@@ -115,12 +146,13 @@ def test_the_ratios_are_monotonic_and_every_quadrant_stays_lit_over_the_field(qd
     assert np.all(np.diff(xs) < -0.05)  # Sun towards +x: spot towards −x, the x ratio falls
     optics = sim.optics
     for alpha in (-40, 40):
-        for beta in (-40, 40):  # the field's corners, through the optics alone
-            s = np.array([math.tan(math.radians(alpha)), math.tan(math.radians(beta)), 1.0])
-            zen, az = math.degrees(math.acos(s[2] / np.linalg.norm(s))), math.degrees(math.atan2(s[1], s[0]))
+        for beta in (-40, 40):  # the field's corners, through the optics alone: the spot itself lights each
+            zen, az = _direction(alpha, beta)
+            spot = optics.spot_power_w(zen, az, 1000.0, 0.5)
+            assert spot.min() > 0.002 * spot.sum()
             i = optics.photocurrents_a(zen, az, 1000.0, 0.5)
-            assert i.min() > 0.005 * i.sum()
-    assert sim.truth.centre_margin_um() > 5.0
+            assert i.min() > 0.005 * i.sum()  # with the stray light and the crosstalk on top
+    assert sim.truth.centre_margin_um() > 4.0
 
 
 def test_the_thesis_geometry_saturates_the_ratio():
@@ -132,27 +164,37 @@ def test_the_thesis_geometry_saturates_the_ratio():
     assert thesis.centre_margin_um() < -1000
     optics = QdOptics(thesis)
     saturated = 0
-    for beta in range(-40, 41, 5):
-        y = ratios(optics.photocurrents_a(abs(beta), 90.0 if beta >= 0 else 270.0, 1000.0, 0.53))[1]
+    for beta in range(-40, 41, 5):  # the spot's light (stray light and crosstalk reach the other side)
+        y = ratios(optics.spot_power_w(abs(beta), 90.0 if beta >= 0 else 270.0, 1000.0, 0.53))[1]
         saturated += abs(abs(y) - 1.0) < 1e-9
     assert saturated >= 15  # all but the one or two points near 32.5°
 
 
-def test_totals_follow_the_cosine_of_incidence(qd):
+def test_totals_follow_the_cosine_of_incidence_times_the_lens(qd):
+    """The light through a diaphragm of thickness t is E·cos i over the lens of its two openings' shadows,
+    t·tan i apart: 6 % less than the hole's area at 45° for t = 5 µm."""
     bench, sim, sensor = qd
-    totals = []
+    sim.mount(dataclasses.replace(sim.truth, diaphragm_thickness_um=5.0))  # a foil mask: the lens shows clearly
+    t = sim.truth
+    totals, lens = [], []
     for omega in (0, 15, 30, 45):
         point(bench.world, omega, 0)
         s = sim.optics.die_direction(*bench.world.sun_direction_body())
         totals.append(dark_corrected(bench.world, sensor).sum() / s[2])
-    # within 2 %: the dead cross takes a little less of the spot once it has moved off the centre
-    assert np.ptp(totals) < 0.02 * np.mean(totals) and totals[-1] > totals[0]
-    assert 2.0e-6 < np.mean(totals) < 3.0e-6  # 100 µm diaphragm, 1000 W/m², 0.35 A/W, less the dead cross
-    no_gap = QdOptics(QdTruth(gap_um=0.0))  # without the cross, exactly the aperture's projected area
-    for zenith, azimuth in [(0, 0), (20, 30), (45, 200), (55, 300)]:
-        cos_i = no_gap.die_direction(zenith, azimuth)[2]
-        power = no_gap.quadrant_power_w(zenith, azimuth, 1000.0, 0.5).sum()
-        assert power / cos_i == pytest.approx(1000.0 * math.pi * 50e-6 ** 2, rel=1e-4)
+        lens.append(_lens_area(50.0, t.diaphragm_thickness_um * math.hypot(s[0], s[1]) / s[2]) / (math.pi * 2500))
+    assert lens[-1] < 0.95 and totals[-1] < 0.97 * totals[0]
+    # within 2 % of the lens law: the dead cross takes a little less of the spot once it has moved off the
+    # centre, the crosstalk adds ~0.6 % (45° is beyond the stray light's cut-off, which adds ~0.1 % there)
+    flat = np.array(totals) / np.array(lens)
+    assert np.ptp(flat) < 0.02 * np.mean(flat) and flat[-1] > flat[0]
+    assert 2.0e-6 < np.mean(flat) < 3.0e-6  # 100 µm diaphragm, 1000 W/m², 0.35 A/W, less the dead cross
+    for thickness in (0.0, 5.0):  # without the cross, exactly the lens' projected area (the hole's when t = 0)
+        no_gap = QdOptics(QdTruth(gap_um=0.0, **{**IDEAL, "diaphragm_thickness_um": thickness}))
+        for zenith, azimuth in [(0, 0), (20, 30), (45, 200), (55, 300)]:
+            s = no_gap.die_direction(zenith, azimuth)
+            power = no_gap.quadrant_power_w(zenith, azimuth, 1000.0, 0.5).sum()
+            area = _lens_area(50e-6, thickness * 1e-6 * math.hypot(s[0], s[1]) / s[2])
+            assert power / s[2] == pytest.approx(1000.0 * area, rel=1e-4)
 
 
 def test_closed_shutter_leaves_the_dark_current(qd):
@@ -162,6 +204,155 @@ def test_closed_shutter_leaves_the_dark_current(qd):
     expected = sim.optics.dark_current_a(sim.tec.true_c())
     # the pedestal's error (a few counts, 30 pA each) and the noise are all that is left
     assert dark == pytest.approx(expected, abs=0.15e-9)
+
+
+# -- what a real module adds (effects the calibration does not model) -----------------------------------------
+def test_the_lens_rectangle_area_is_exact():
+    rng = np.random.default_rng(2)
+    for _ in range(300):  # coincident discs: the disc's closed form
+        c = rng.uniform(-1.5, 1.5, 2)
+        (x1, x2), (y1, y2) = np.sort(rng.uniform(-2, 2, 2)), np.sort(rng.uniform(-2, 2, 2))
+        assert lens_rect_area(*c, *c, 1.0, x1, x2, y1, y2) == pytest.approx(
+            disc_rect_area(x1 - c[0], x2 - c[0], y1 - c[1], y2 - c[1], 1.0), abs=1e-12)
+    for delta in (0.0, 0.3, 1.0, 1.9, 2.0, 2.5):  # a rectangle around everything: the two discs' lens
+        lens = lens_rect_area(0.3, 0.1, 0.3 + 0.6 * delta, 0.1 + 0.8 * delta, 1.0, -5, 5, -5, 5)
+        assert lens == pytest.approx(_lens_area(1.0, min(delta, 2.0)), abs=1e-12)
+    pts = rng.uniform(-2, 2, (2_000_000, 2))  # Monte Carlo: 1σ ≈ 0.002
+    for a, b, (x1, x2, y1, y2) in [((0.1, -0.2), (0.5, 0.3), (-0.3, 0.9, -2, 0.05)),
+                                   ((-0.4, 0.2), (-0.4, -0.6), (-2, -0.1, -0.8, 2)),
+                                   ((0.0, 0.0), (0.9, -0.1), (0.2, 0.6, -0.5, 0.5))]:
+        inside = ((((pts - a) ** 2).sum(1) < 1) & (((pts - b) ** 2).sum(1) < 1) & (pts[:, 0] > x1)
+                  & (pts[:, 0] < x2) & (pts[:, 1] > y1) & (pts[:, 1] < y2))
+        assert lens_rect_area(*a, *b, 1.0, x1, x2, y1, y2) == pytest.approx(inside.mean() * 16, abs=0.01)
+
+
+def test_a_thick_diaphragm_passes_the_lens_of_its_two_openings():
+    """Sun towards +x at incidence i: the spot is the lens t·tan i narrower along x than the hole, centred on the
+    mid-plane's shadow (t·tan i / 2 beyond the bottom opening's), so the x split sees a narrower, shifted spot."""
+    i = 40.0
+    tan_i = math.tan(math.radians(i))
+    thick = dict(gap_um=0.0, alpha0_deg=0.0, beta0_deg=0.0, phi0_deg=0.0, y0_um=0.0, wall_reflectance=0.0,
+                 crosstalk=(0.0,) * 4, diaphragm_thickness_um=5.0)
+    delta = 5.0 * tan_i
+
+    def plus_x_share(x0_um, **over):  # share of the +x quadrants (Q2, Q3) for the Sun at i towards +x
+        power = QdOptics(QdTruth(**{**thick, "x0_um": x0_um, **over})).spot_power_w(i, 0.0, 1000.0, 0.0)
+        return (power[1] + power[2]) / power.sum()
+
+    # the split through the mid-plane's shadow halves the lens: its centre is (x0 − d·tan i)
+    assert plus_x_share(30.0 * tan_i) == pytest.approx(0.5, abs=1e-9)
+    # … not the bottom opening's shadow's (a thin mask at d − t/2 would put it there)
+    assert plus_x_share(27.5 * tan_i, diaphragm_thickness_um=0.0, height_um=27.5) == pytest.approx(0.5, abs=1e-9)
+    assert plus_x_share(27.5 * tan_i) < 0.5 - 0.02
+    # the lens' +x edge is r − δ/2 from its centre, where the disc's would be r
+    edge = 30.0 * tan_i - (50.0 - delta / 2)  # x0 that puts the split line on the lens' +x edge
+    assert plus_x_share(edge + 0.05) > 0 and plus_x_share(edge - 0.05) == 0.0
+    assert plus_x_share(edge - 0.05, diaphragm_thickness_um=0.0) > 0.002  # a thin mask's disc still crosses
+    # and the spot's light is the lens' area (the test above checks it against the closed form)
+
+
+# the stray-light tests' build: a 5 µm foil mask (the figures below are for it; the default mask is 1 µm)
+FOIL = dataclasses.replace(QdTruth(), diaphragm_thickness_um=5.0)
+
+
+def test_the_housing_scatters_light_beyond_its_cut_off_onto_the_suns_side():
+    truth = FOIL
+    optics = QdOptics(truth)
+    cut = truth.stray_cutoff_deg
+    assert cut == pytest.approx(math.degrees(math.atan2(1.9 - 1.3, 1.0)))
+    assert optics.die_direction(cut - 0.6, 45.0)[2] > 0
+    assert not optics.stray_power_w(cut - 0.6, 45.0 - truth.phi0_deg, 1000.0).any()  # below: none
+    fractions = []
+    for alpha in (32, 35, 40):  # beyond it the stray light grows with the incidence
+        zen, az = _direction(alpha, alpha)
+        fractions.append(optics.stray_power_w(zen, az, 1000.0).sum() / optics.spot_power_w(zen, az, 1000.0).sum())
+    assert 0 < fractions[0] < fractions[1] < fractions[2]
+    assert 0.003 < fractions[-1] < 0.0045  # 0.74 %·ρ at the field's corner (module docstring), ρ = 0.5
+    # it lands on the side the Sun is on: opposite the direct spot, in the diagonally opposite quadrant
+    for (alpha, beta), spot_q, stray_q in [((40, 40), 1, 2), ((-40, -40), 2, 1), ((40, -40), 4, 3), ((-40, 40), 3, 4)]:
+        zen, az = _direction(alpha, beta)
+        spot, stray = optics.spot_power_w(zen, az, 1000.0), optics.stray_power_w(zen, az, 1000.0)
+        assert np.argmax(spot) == spot_q - 1 and stray[stray_q - 1] > 0.9 * stray.sum()
+    zen, az = _direction(40, 0)  # Sun towards +x: the spot on Q1, Q4, the stray light on Q2, Q3
+    stray = optics.stray_power_w(zen, az, 1000.0)
+    assert stray[1] + stray[2] > 0.99 * stray.sum()
+    # proportional to the wall's reflectance, off at zero
+    darker = QdOptics(dataclasses.replace(truth, wall_reflectance=0.1)).stray_power_w(zen, az, 1000.0)
+    assert darker == pytest.approx(0.2 * stray, rel=1e-9)
+    assert not QdOptics(dataclasses.replace(truth, wall_reflectance=0.0)).stray_power_w(zen, az, 1000.0).any()
+
+
+def test_the_stray_light_integral_matches_brute_force_ray_tracing():
+    """The wall integral (Gauss–Legendre over the lit band, bounded in closed form) against the same physics by
+    brute force: rays through a lattice over the window, traced to the wall, each hit a Lambertian source."""
+    truth = FOIL
+    optics = QdOptics(truth)
+    rh, h, rw = truth.bore_radius_mm, truth.bore_height_mm, truth.window_radius_mm
+    for alpha, beta in [(40, 40), (-38, 15), (10, -40), (50, 45), (-62, 10)]:  # the last two beyond i = 54°
+        zen, az = _direction(alpha, beta)
+        s = optics.die_direction(zen, az)
+        tx, ty = s[0] / s[2], s[1] / s[2]
+        n = 400
+        g = (np.arange(n) + 0.5) / n * 2 - 1
+        px, py = (a.ravel() * rw for a in np.meshgrid(g, g))
+        keep = px * px + py * py < rw * rw
+        px, py = px[keep], py[keep]
+        cell = (2 * rw / n) ** 2 * s[2]  # beam cross-section of one ray's cell [mm²] (E·cos i on the window)
+        # a ray from (p, H) goes down as p − u·T; it meets the wall where |p − u·T| = R_h with u ≤ H
+        tt = tx * tx + ty * ty
+        pt = px * tx + py * ty
+        u = (pt + np.sqrt(pt * pt - tt * (px * px + py * py - rh * rh))) / tt
+        hit = u < h
+        wx, wy, z = px[hit] - u[hit] * tx, py[hit] - u[hit] * ty, h - u[hit]
+        power = 1000.0 * cell * 1e-6  # [W] per ray
+        dist2 = rh * rh + z * z
+        # Lambertian: intensity ρ P cos(emission)/π towards the diaphragm; irradiance there I/|w|², die-plane ·cos
+        irradiance = truth.wall_reflectance * power / math.pi * (rh / np.sqrt(dist2)) / dist2 * (z / np.sqrt(dist2))
+        irradiance *= 1e6  # per mm² → per m²
+        areas = optics._footprint_areas_um2(wx / z, wy / z)
+        brute = 1e-12 * (areas * irradiance).sum(axis=1)
+        fast = optics.stray_power_w(zen, az, 1000.0)
+        assert fast.sum() > 0 and fast == pytest.approx(brute, abs=0.01 * brute.sum()), (alpha, beta, fast, brute)
+
+
+def test_crosstalk_couples_geometric_neighbours_only():
+    """Q1 (−,−) is next to Q3 (+,−) and Q4 (−,+), diagonal to Q2 (+,+): with the spot wholly on Q1, Q3 and Q4
+    read their pair's fraction of it and Q2 nothing."""
+    assert all(np.abs(QUADRANT_SIGNS[i] - QUADRANT_SIGNS[j]).sum() == 2 for i, j in RING_PAIRS)  # one axis differs
+    assert {frozenset(p) for p in RING_PAIRS} == {frozenset((i, j)) for i in range(4) for j in range(4)
+                                                 if np.abs(QUADRANT_SIGNS[i] - QUADRANT_SIGNS[j]).sum() == 2}
+    truth = QdTruth(x0_um=-200.0, y0_um=-200.0, quadrant_response=(1.0, 1.0, 1.0, 1.0))  # the spot on Q1 alone
+    k13, k32, k24, k41 = truth.crosstalk
+    i = QdOptics(truth).photocurrents_a(0.0, 0.0, 1000.0, 0.5)
+    assert i[0] > 2e-6 and i[1] == 0.0
+    assert i[2] == pytest.approx(k13 * i[0], rel=1e-12) and i[3] == pytest.approx(k41 * i[0], rel=1e-12)
+    # everywhere: the channels are C · the quadrants' photocurrents
+    optics = QdOptics(QdTruth())
+    own = optics._response_a_w * optics.quadrant_power_w(30.0, 70.0, 1000.0, 0.5)
+    mixed = optics.photocurrents_a(30.0, 70.0, 1000.0, 0.5)
+    assert mixed[0] == pytest.approx(own[0] + k13 * own[2] + k41 * own[3], rel=1e-12)
+    assert mixed[1] == pytest.approx(own[1] + k32 * own[2] + k24 * own[3], rel=1e-12)
+    off = QdOptics(QdTruth(crosstalk=(0.0,) * 4)).photocurrents_a(30.0, 70.0, 1000.0, 0.5)
+    assert off == pytest.approx(own, rel=1e-12)
+
+
+def test_the_effects_pull_a_reading_at_the_edge_of_the_field(qd):
+    """Through the wire at α = 40°: the stray light and the crosstalk put light on the Sun's side (+x), so the x
+    ratio is less negative than the ideal module's; each is there only when its field is nonzero."""
+    bench, sim, sensor = qd
+    point(bench.world, 40, 0)
+    x = {}
+    for name, over in [("real", {}), ("no stray light", dict(wall_reflectance=0.0)),
+                       ("ideal", dict(wall_reflectance=0.0, crosstalk=(0.0,) * 4))]:
+        sim.mount(dataclasses.replace(QdTruth(), **over))
+        x[name] = ratios(dark_corrected(bench.world, sensor, 100))[0]
+    # x ≈ −0.65; the crosstalk adds ≈ 2k·0.65 ≈ +0.004, the stray light (0.035 % of the light at 40° for ρ = 0.5,
+    # all on +x) ≈ +0.0007; the ratio's noise here is ~2e-5
+    assert x["ideal"] + 0.003 < x["no stray light"] < x["real"] - 0.0004
+    ideal_truth = sim.truth
+    zen, az = bench.world.sun_direction_body()
+    assert np.allclose(sim.photocurrents_a(), QdOptics(ideal_truth).photocurrents_a(
+        zen, az, sim.truth.irradiance_w_m2 * bench.world.irradiance(), bench.world.bench.source_diameter_deg))
 
 
 # -- temperature -----------------------------------------------------------------------------------------------
@@ -327,9 +518,15 @@ def test_the_module_answers_bad_commands_with_error_frames(qd):
 
 
 def test_the_bench_config_section():
-    config = SimBenchConfig(family="qd", qd=QdSensorConfig(height_um=25.0, aperture_diameter_um=80.0))
+    config = SimBenchConfig(family="qd", qd=QdSensorConfig(height_um=25.0, aperture_diameter_um=80.0,
+                                                           diaphragm_thickness_um=2.0, wall_reflectance=0.05))
     bench = SimBench(config, time_scale=0.0)
-    assert bench.devices["sensor"].truth.height_um == 25.0
+    truth = bench.devices["sensor"].truth
+    assert (truth.height_um, truth.diaphragm_thickness_um, truth.wall_reflectance) == (25.0, 2.0, 0.05)
+    for bad in [dict(window_radius_mm=2.0), dict(crosstalk=(0.003, -0.001, 0.003, 0.003)),
+                dict(diaphragm_thickness_um=61.0), dict(wall_reflectance=1.5)]:
+        with pytest.raises(ValueError):
+            QdSensorConfig(**bad)
     assert SimBench(time_scale=0.0).devices["sensor"].name == "cmos-sensor"  # the default family is unchanged
     with pytest.raises(ValueError):
         QdSensorConfig(quadrant_response=(1.0, 1.0, 1.0, -1.0))
