@@ -54,7 +54,6 @@ POLL_S = 0.02
 ENV = {**{k: v for k, v in os.environ.items() if k != "SUNBENCH_CATALOGUE"},
        "COLUMNS": "160", "NO_COLOR": "1", "TERM": "dumb"}
 
-pytestmark = pytest.mark.skipif(not SUNBENCH.exists(), reason=f"no console script {SUNBENCH}")
 
 
 def start(workdir: Path, name: str, *args) -> subprocess.Popen:
@@ -109,6 +108,7 @@ def kill_when(proc: subprocess.Popen, path: Path, *, after_run: int | None, at_l
 
 
 def test_killed_runs_resume_to_a_complete_lineage_without_duplicates(tmp_path):
+    assert SUNBENCH.exists(), f"no console script {SUNBENCH}: install the package (bash scripts/setup.sh)"
     t_start = time.monotonic()
     campaign_file, bench_file, db = tmp_path / "campaign.yaml", tmp_path / "bench.yaml", tmp_path / "cat.sqlite"
     campaign_file.write_text(CAMPAIGN)
