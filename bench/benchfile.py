@@ -48,7 +48,7 @@ from .yamlfile import read_yaml
 SIM_URL = "sim"
 TABLE_KINDS = ("apt", "smc100", "lx200", "manual")
 SOURCE_KINDS = ("xenon", "led")
-SENSOR_KINDS = ("cmos", "camera")
+SENSOR_KINDS = ("cmos", "qd", "camera")  # the first two can be simulated (simulation.family)
 # Soft limits [°] of a seed 003 run: azimuth sweeps a full turn from either side of zero, the zenith stage
 # reaches past the sensor's 60° half field of view and a little below normal incidence.
 DEFAULT_AZIMUTH_LIMITS_DEG = (-180.0, 360.0)
@@ -406,7 +406,9 @@ class BenchFile(_Strict):
         sim, devices = _section(data, "simulation"), _section(data, "devices")
         if not (isinstance(sim, dict) and isinstance(devices, dict)):
             return data  # the validation proper names the bad section
-        for role, sim_key, kinds in (("table", "table", TABLE_KINDS[:3]), ("source", "source", SOURCE_KINDS)):
+        # each simulated kind follows the device's, and the other way round (the sensor's: the simulated family)
+        for role, sim_key, kinds in (("table", "table", TABLE_KINDS[:3]), ("source", "source", SOURCE_KINDS),
+                                     ("sensor", "family", SENSOR_KINDS[:2])):
             device = devices.get(role)
             device = {} if device is None else device
             if not isinstance(device, dict):
@@ -415,13 +417,6 @@ class BenchFile(_Strict):
                 devices[role] = {**device, "kind": sim[sim_key]}
             elif sim_key not in sim and device.get("kind") in kinds:
                 sim[sim_key] = device["kind"]
-        sensor = devices.get("sensor")
-        sensor = {} if sensor is None else sensor
-        if isinstance(sensor, dict):  # the sensor's kind follows the simulated family, and the other way round
-            if "kind" not in sensor and sim.get("family") in ("cmos", "qd"):
-                devices["sensor"] = {**sensor, "kind": sim["family"]}
-            elif "family" not in sim and sensor.get("kind") in ("cmos", "qd"):
-                sim["family"] = sensor["kind"]
         data["simulation"], data["devices"] = sim, devices
         try:
             truth = SimBenchConfig.model_validate(sim)
@@ -448,7 +443,7 @@ class BenchFile(_Strict):
                 problems.append((("devices", "table", "kind"), f"{table.kind!r} does not match simulation.table "
                                                                f"{self.simulation.table!r}"))
             sensor = self.devices.sensor
-            if sensor.kind in ("cmos", "qd") and sensor.kind != self.simulation.family:
+            if sensor.kind in SENSOR_KINDS[:2] and sensor.kind != self.simulation.family:
                 problems.append((("devices", "sensor", "kind"), f"{sensor.kind!r} does not match simulation.family "
                                                                 f"{self.simulation.family!r}"))
             if source.kind != self.simulation.source:

@@ -20,11 +20,9 @@ from calibration.procedure import (
     SEED003_ZENITH_STAGE_DEG,
     grid_azimuths_deg,
 )
+from calibration.qd.document import QD_METHODS  # the QD family's fits
 
 from .yamlfile import field_problems, read_yaml
-
-#: The QD family's fits (calibration.qd)
-QD_METHODS = ("geometric", "polynomial", "physical")
 
 
 class CampaignFileError(Exception):

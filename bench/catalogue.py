@@ -22,8 +22,9 @@ Research note ``anchors-orchestration.md``, lessons 3–5:
   by a newer sunbench is refused.
 
 Every refusal is a :class:`CatalogueError` whose message names the problem. Every method returns plain
-dicts (JSON-ready): a column ``<name>_json`` comes back parsed under ``<name>``; timestamps are ISO 8601 UTC
-strings (``2026-05-09T07:35:25.123456Z``), which sort as text.
+dicts (JSON-ready), but :meth:`Catalogue.readings`, whose typed records (:class:`bench.descriptor.ReadingRecord`)
+carry any family's values: a column ``<name>_json`` comes back parsed under ``<name>``; timestamps are ISO 8601
+UTC strings (``2026-05-09T07:35:25.123456Z``), which sort as text.
 
 Threads: one :class:`Catalogue` object may be shared by the writer thread and others (an internal lock
 serialises every statement), but a thread that reads a lot should open its own read-only catalogue.
@@ -32,6 +33,7 @@ serialises every statement), but a thread that reads a lot should open its own r
 from __future__ import annotations
 
 import datetime as dt
+import functools
 import json
 import math
 import os
@@ -301,6 +303,12 @@ def _run_ids(run_ids: int | Iterable[int]) -> list[int]:
         if not isinstance(run_id, int) or isinstance(run_id, bool):
             raise CatalogueError(f"run ids are integers, not {run_id!r}")
     return ids
+
+
+@functools.lru_cache(maxsize=16)
+def _descriptor(descriptor_json: str) -> ReadingDescriptor:
+    """A run's reading descriptor from its stored JSON, parsed once, not for every point recorded."""
+    return ReadingDescriptor.from_json(json.loads(descriptor_json))
 
 
 def _placeholders(n: int) -> str:
@@ -928,7 +936,7 @@ class Catalogue:
             raise CatalogueError(f"point {key!r} has no readings; a point is a pose with its frames")
         with self._write(f"record point {key!r} of run {run_id}") as conn:
             run = self._run_row(conn, run_id)
-            descriptor = ReadingDescriptor.from_json(json.loads(run["descriptor_json"]))
+            descriptor = _descriptor(run["descriptor_json"])
             rows = [self._reading_row(i, reading, key, descriptor) for i, reading in enumerate(readings)]
             status = run["status"]
             if status in TERMINAL_RUN_STATUSES:
@@ -1012,7 +1020,7 @@ class Catalogue:
         row = self._one("SELECT descriptor_json FROM runs WHERE id = ?", (run_id,))
         if row is None:
             raise CatalogueError(f"no run {run_id}")
-        return ReadingDescriptor.from_json(json.loads(row["descriptor_json"]))
+        return _descriptor(row["descriptor_json"])
 
     # --- frames -----------------------------------------------------------------------------------------
     @property

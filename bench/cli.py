@@ -285,7 +285,8 @@ def print_qd_outcome(outcome, frames: QdFrames, method: str) -> None:
 def fit_qd(
     data_csv: Path = typer.Argument(..., help="QD bench data CSV (see the README)."),
     method: Optional[str] = typer.Option(None, "--method", "-m", help=f"One of {', '.join(QD_METHODS)}; default: "
-                                                                      "the smallest held-out max error."),
+                                                                      "the fewest held-out points without a direction, "
+                                                                      "then the smallest held-out max error."),
     output: Optional[Path] = typer.Option(None, "--output", "-o", help="Write the calibration JSON here."),
     header: Optional[Path] = typer.Option(None, "--header", help="Also write a C header for the sensor's MCU."),
     sensor: Optional[str] = typer.Option(None, "--sensor", help="Fit this sensor_id of a multi-sensor file."),
@@ -385,11 +386,11 @@ def export_header(
     """Export a calibration as a C header with `sunbench_sun_direction()` (QD: `sunbench_qd_sun_direction()`)
     for the sensor's MCU."""
     if is_qd_document(load_calibration_json(calibration_json)):
-        _write_text(output, qd_header_from_document(read_qd_calibration(calibration_json)))
-        out.print(f"C header written to {escape(str(output))}")
-        return
-    calibration, document = read_calibration(calibration_json)
-    _write_text(output, header_from_document(document, calibration))
+        text = qd_header_from_document(read_qd_calibration(calibration_json))
+    else:
+        calibration, document = read_calibration(calibration_json)
+        text = header_from_document(document, calibration)
+    _write_text(output, text)
     out.print(f"C header written to {escape(str(output))}")
 
 

@@ -77,62 +77,64 @@ def fmt(value: float, digits: int = 3) -> str:
     return "—" if value != value else f"{value:.{digits}f}"  # NaN → dash
 
 
-def metrics_table(reports: list[MethodReport], chosen: str | None) -> Table:
-    """Seed 003 Table 4.1 columns for every method: held out (the worse of two schemes), and more."""
+def _method_table(title: str, columns: dict[str, dict], rows, chosen: str | None) -> Table:
+    """One row per method, the chosen one marked `*`; `rows` are (method, cells, notes), cells None for a method
+    that could not be fitted (dashes then); every note goes in the caption."""
     notes: list[str] = []
-    table = Table(title="Accuracy held out [°] — the worse of leave-one-azimuth-out and leave-one-zenith-ring-out; "
-                        "* = chosen", title_justify="left")
+    table = Table(title=title, title_justify="left")
     table.add_column("method", no_wrap=True)
-    for name in ("RMS zenith", "RMS azimuth", "RMS vector", "95 % (2×RMS)", "max vector", "azimuth out",
-                 "ring out", "RMS at nodes", "χ²/dof"):
-        table.add_column(name, justify="right", max_width=9)
-    for r in reports:
-        label = r.method + (" *" if r.method == chosen else "")
-        if r.calibration is None:
-            table.add_row(label, *["[dim]—[/]"] * 9)
-            notes.append(f"not fitted: {r.error}")
-            continue
-        h = r.heldout
-        row = [fmt(h.rms_zenith_deg, 4), fmt(h.rms_azimuth_deg, 4), fmt(h.rms_vector_deg, 4), fmt(h.bound95_deg, 4),
-               fmt(h.max_vector_deg, 4)] if h else ["—"] * 5
-        row += [fmt(r.heldout_azimuth.rms_vector_deg, 4) if r.heldout_azimuth else "—",
-                fmt(r.heldout_ring.rms_vector_deg, 4) if r.heldout_ring else "—"]
-        table.add_row(label, *row, fmt(r.fitted.rms_vector_deg, 4),
-                      fmt(r.chi2_dof, 1) if r.chi2_dof is not None else "—")
-        if r.error:
-            notes.append(f"{r.method}: {r.error}")
-    table.caption = "\n".join(notes) or None
+    for name, options in columns.items():
+        table.add_column(name, **options)
+    for method, cells, row_notes in rows:
+        table.add_row(method + (" *" if method == chosen else ""),
+                      *(["[dim]—[/]"] * len(columns) if cells is None else cells))
+        notes += row_notes
+    table.caption = "\n".join(escape(n) for n in notes) or None
     table.caption_justify = "left"
     return table
 
 
+def metrics_table(reports: list[MethodReport], chosen: str | None) -> Table:
+    """Seed 003 Table 4.1 columns for every method: held out (the worse of two schemes), and more."""
+    def row(r: MethodReport):
+        if r.calibration is None:
+            return r.method, None, [f"not fitted: {r.error}"]
+        h = r.heldout
+        cells = [fmt(h.rms_zenith_deg, 4), fmt(h.rms_azimuth_deg, 4), fmt(h.rms_vector_deg, 4), fmt(h.bound95_deg, 4),
+                 fmt(h.max_vector_deg, 4)] if h else ["—"] * 5
+        cells += [fmt(r.heldout_azimuth.rms_vector_deg, 4) if r.heldout_azimuth else "—",
+                  fmt(r.heldout_ring.rms_vector_deg, 4) if r.heldout_ring else "—",
+                  fmt(r.fitted.rms_vector_deg, 4), fmt(r.chi2_dof, 1) if r.chi2_dof is not None else "—"]
+        return r.method, cells, [f"{r.method}: {r.error}"] if r.error else []
+
+    columns = {name: {"justify": "right", "max_width": 9} for name in (
+        "RMS zenith", "RMS azimuth", "RMS vector", "95 % (2×RMS)", "max vector", "azimuth out", "ring out",
+        "RMS at nodes", "χ²/dof")}
+    return _method_table("Accuracy held out [°] — the worse of leave-one-azimuth-out and leave-one-zenith-ring-out; "
+                         "* = chosen", columns, map(row, reports), chosen)
+
+
 def qd_metrics_table(reports, chosen: str | None) -> Table:
     """Every QD method's angular error [°]: held out between the grid's nodes (what it is judged by), at them."""
-    notes: list[str] = []
-    table = Table(title="Accuracy [°] — held out: the worst, by max, of the off-node check points and the grid "
-                        "columns / rows left out; * = chosen", title_justify="left")
-    table.add_column("method", no_wrap=True)
-    for name in ("held-out max", "held-out RMS", "held-out p99", "scheme", "max by scheme", "max at nodes",
-                 "RMS at nodes", "χ²/dof"):
-        table.add_column(name, justify="left" if name in ("scheme", "max by scheme") else "right",
-                         no_wrap=name == "max by scheme")
-    for r in reports:
-        label = r.method + (" *" if r.method == chosen else "")
+    def row(r):
         if r.model is None:
-            table.add_row(label, *["[dim]—[/]"] * 8)
-            notes.append(f"{r.method} not fitted: {r.error}")
-            continue
+            return r.method, None, [f"{r.method} not fitted: {r.error}"]
         h, n = r.heldout, r.at_nodes
-        row = [fmt(h.max_deg, 4), fmt(h.rms_deg, 4), fmt(h.p99_deg, 4), r.heldout_scheme or "—"] if h else ["—"] * 4
-        row.append(" · ".join(f"{k} {fmt(v.max_deg, 4)}" for k, v in r.heldout_by_scheme.items()) or "—")
-        row += [fmt(n.max_deg, 4), fmt(n.rms_deg, 4)] if n else ["—"] * 2
-        row.append(fmt(r.chi2_dof, 1) if r.chi2_dof is not None else "—")
-        table.add_row(label, *row)
+        cells = [fmt(h.max_deg, 4), fmt(h.rms_deg, 4), fmt(h.p99_deg, 4), r.heldout_scheme or "—"] if h else ["—"] * 4
+        cells.append(" · ".join(f"{k} {fmt(v.max_deg, 4)}" for k, v in r.heldout_by_scheme.items()) or "—")
+        cells += [fmt(n.max_deg, 4), fmt(n.rms_deg, 4)] if n else ["—"] * 2
+        cells.append(fmt(r.chi2_dof, 1) if r.chi2_dof is not None else "—")
+        notes = []
         if h is not None and h.n_failed:
             notes.append(f"{r.method}: no direction for {h.n_failed} of {h.n_points} held-out points (left out of "
                          "its figures)")
         if r.error:
             notes.append(f"{r.method}: {r.error}")
-    table.caption = "\n".join(escape(n) for n in notes) or None
-    table.caption_justify = "left"
-    return table
+        return r.method, cells, notes
+
+    columns = {name: {"justify": "left" if name in ("scheme", "max by scheme") else "right",
+                      "no_wrap": name == "max by scheme"}
+               for name in ("held-out max", "held-out RMS", "held-out p99", "scheme", "max by scheme", "max at nodes",
+                            "RMS at nodes", "χ²/dof")}
+    return _method_table("Accuracy [°] — held out: the worst, by max, of the off-node check points and the grid "
+                         "columns / rows left out; * = chosen", columns, map(row, reports), chosen)

@@ -65,11 +65,11 @@ class _ProgressView:
         elif event.kind in ("paused", "suspended"):
             self.progress.console.print(f"[yellow]{event.kind}:[/] {escape(event.data.get('reason', ''))}")
         elif event.kind == "warning":
-            self.progress.console.print(f"[yellow]warning:[/] {escape(event.message)}")
+            self.progress.console.print(f"[yellow]warning:[/] {escape(event.message)}", soft_wrap=True)
         elif event.kind == "unsafe":
-            self.progress.console.print(f"[bold red]{escape(event.message)}[/]")
+            self.progress.console.print(f"[bold red]{escape(event.message)}[/]", soft_wrap=True)
         elif event.kind == "fit":  # what the fits at the run's end found (bench.families, journal)
-            self.progress.console.print(f"fit: {escape(event.message)}", highlight=False)
+            self.progress.console.print(f"fit: {escape(event.message)}", highlight=False, soft_wrap=True)
 
 
 def _abort_on_signals(engine):
@@ -133,14 +133,16 @@ def _end_of_campaign(cat, runs: list[int]) -> None:
         raise typer.Exit(1)
     for run_id in runs:
         _print_run_summary(cat, run_id)
-    campaign_id = cat.run(runs[-1])["campaign_id"] if runs else None
-    if campaign_id is not None:
-        campaign = cat.campaign(campaign_id)
-        if campaign["status"] != "completed":
-            out.print(f"campaign {campaign_id}: {campaign['status']}; `sunbench resume {runs[-1]}` goes on with it")
+    last = cat.run(runs[-1])
+    campaign_done = True
+    if last["campaign_id"] is not None:
+        campaign = cat.campaign(last["campaign_id"])
+        campaign_done = campaign["status"] == "completed"
+        if not campaign_done:
+            out.print(f"campaign {last['campaign_id']}: {campaign['status']}; `sunbench resume {runs[-1]}` goes on "
+                      "with it")
     print(runs[-1])
-    if cat.run(runs[-1])["status"] != "completed" or \
-            (campaign_id is not None and cat.campaign(campaign_id)["status"] != "completed"):
+    if last["status"] != "completed" or not campaign_done:
         raise typer.Exit(1)  # aborted, failed or not mounted: scripts must not take it for a finished campaign
     if any(_ended_unsafe(cat, run_id) for run_id in runs):
         raise typer.Exit(1)  # the bench was left unsafe: nothing must start on it before someone looks

@@ -218,6 +218,23 @@ def _bench_data(table: CsvTable, bench: BenchGeometry | None, sensor_id: str | N
     return data.subset(keep) if not keep.all() else data
 
 
+def header_numbers(table: CsvTable, known) -> dict[str, float]:
+    """The ``# key: value`` comments above the header as numbers; a key not in `known` or a value that is not a
+    finite number raises :class:`DataFileError` naming its line."""
+    numbers = {}
+    for key, (value, line) in table.metadata.items():
+        if key not in known:
+            raise DataFileError(table.path, f"unknown header comment {key!r}; known: {', '.join(known)}", line=line)
+        try:
+            number = float(value)
+        except ValueError:
+            raise DataFileError(table.path, f"header comment {key}: {value!r} is not a number", line=line) from None
+        if not math.isfinite(number):
+            raise DataFileError(table.path, f"header comment {key}: {value!r} is not a finite number", line=line)
+        numbers[key] = number
+    return numbers
+
+
 #: Header comments a bench data CSV may carry: the sensor's design and the bench's geometry (README).
 DESIGN_KEYS = ("width_px", "height_px", "pixel_pitch_mm", "pinhole_height_mm", "hole_diameter_mm", "bit_depth",
                "fov_half_deg")
@@ -253,18 +270,7 @@ def read_bench_frames(path, *, sensor_id: str | None = None) -> BenchFrames:
     an unknown key or a value that is not a number raises :class:`DataFileError` naming the line.
     """
     table = read_csv_table(path)
-    metadata = {}
-    known = DESIGN_KEYS + GEOMETRY_KEYS + OTHER_KEYS
-    for key, (value, line) in table.metadata.items():
-        if key not in known:
-            raise DataFileError(table.path, f"unknown header comment {key!r}; known: {', '.join(known)}", line=line)
-        try:
-            number = float(value)
-        except ValueError:
-            raise DataFileError(table.path, f"header comment {key}: {value!r} is not a number", line=line) from None
-        if not math.isfinite(number):
-            raise DataFileError(table.path, f"header comment {key}: {value!r} is not a finite number", line=line)
-        metadata[key] = number
+    metadata = header_numbers(table, DESIGN_KEYS + GEOMETRY_KEYS + OTHER_KEYS)
     stage = not all(table.has(c) for c in TRUE_COLUMNS)
     if not stage:
         return BenchFrames(_bench_data(table, None, sensor_id), None, metadata)

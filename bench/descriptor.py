@@ -99,12 +99,6 @@ class ReadingDescriptor:
     fields: tuple[FieldSpec, ...]
     version: int = 1
 
-    def field(self, name: str) -> FieldSpec:
-        for f in self.fields:
-            if f.name == name:
-                return f
-        raise KeyError(f"the {self.family} reading has no field {name!r} (fields: {', '.join(self.names)})")
-
     @property
     def names(self) -> tuple[str, ...]:
         return tuple(f.name for f in self.fields)

@@ -18,9 +18,10 @@ A move is expected to take what the table's own speeds say (:meth:`drivers.inter
 
 The engine emits one event type (:class:`bench.events.BenchEvent`) for what it does and reads (``table``,
 ``source``, ``sensor``, ``point`` …), so a status view can follow a run without asking devices the engine owns;
-the journal (the catalogue's ``events`` table) is one subscriber, the event stream, the status cache and the
-CLI's progress are others. Plan messages are dispatched through one table (:attr:`RunEngine.handlers`), and
-what a reading is comes from the run's sensor family (:mod:`bench.families`): the engine knows no family.
+the journal (:class:`bench.events.Journal`, the catalogue's ``events`` table) takes the journaled ones first, so
+a run never goes on unrecorded; the event stream, the status cache and the CLI's progress subscribe. Plan
+messages are dispatched through one table (:attr:`RunEngine.handlers`), and what a reading is comes from the
+run's sensor family (:mod:`bench.families`): the engine knows no family.
 
 A point is recorded in one catalogue transaction, so a killed process leaves whole points only; a resumed
 run skips the keys its lineage recorded (research note anchors-orchestration, lessons 2, 3, 9).
@@ -41,10 +42,10 @@ from calibration.mount import ForkMount, fork_vectors
 from calibration.stage_geometry import arm_ratio, body_direction_deg
 from drivers.errors import DeviceFault, DeviceTimeout
 
+from .descriptor import ReadingRecord
 from .events import BenchEvent, Journal
 from .families import Family
 from .families import family as family_named
-from .families.cmos import EDGE_FLAGS  # noqa: F401 - re-exported for older imports
 from .interlocks import DEFAULT_INTERLOCKS, Interlocks
 from .messages import (
     Capture,
@@ -120,9 +121,6 @@ class Aborted(Exception):
     """Raised inside the engine when an abort or an emergency stop ends the run."""
 
 
-EngineEvent = BenchEvent  # the engine's events are the bench's one event type
-
-
 def _safe_name(key: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.=+-]", "_", key)
 
@@ -191,6 +189,7 @@ class RunEngine:
         self._pose: tuple[float, float] | None = None  # where the table was last seen still (azimuth, zenith)
         self._timing: TimingModel | None | bool = False  # the table's speeds; False: not asked yet, None: unknown
         self._observed: dict[str, tuple[float, dict]] = {}  # kind -> (when, data) of the last reading emitted
+        self._lineage_readings: dict[str, list[ReadingRecord]] | None = None  # by point key, read once (_recorded)
         self.last_frame = None
 
     # -- state and commands ----------------------------------------------------------------------------
@@ -296,11 +295,6 @@ class RunEngine:
         self._emit("state", state=EngineState.IDLE.value, previous=EngineState.ESTOP.value)
         self._journal("estop", "emergency stop acknowledged")
 
-    @property
-    def latched(self) -> bool:
-        """An emergency stop is latched (see :meth:`emergency_stop`)."""
-        return self._estop
-
     def check_unlatched(self) -> None:
         """Raise :class:`EstopLatched` while an emergency stop is latched (before queueing a campaign)."""
         if self._estop:
@@ -353,31 +347,32 @@ class RunEngine:
         """Lamp on, or at standby (allowed while latched: it makes the bench safer)."""
         source = self.devices.source
         if on:
-            self._manual("switch the lamp on")
-            self._checked(source.lamp_on)
+            self._source_action("switch the lamp on", source.lamp_on, lamp_on=True)
         else:
-            self._manual("put the lamp at standby", safe=True)
-            source.standby()
+            self._source_action("put the lamp at standby", source.standby, darker=True, shutter_open=False)
             self._shutter_open = False
-        self._observe_source(**({"lamp_on": True} if on else {"shutter_open": False}))
 
     def set_shutter(self, open_: bool) -> None:
         """Open the shutter, or close it (allowed while latched: it makes the bench safer)."""
         source = self.devices.source
         if open_:
-            self._manual("open the shutter")
-            self._checked(source.open_shutter)
+            self._source_action("open the shutter", source.open_shutter, shutter_open=True)
         else:
-            self._manual("close the shutter", safe=True)
-            source.close_shutter()
-        self._observe_source(shutter_open=open_)
+            self._source_action("close the shutter", source.close_shutter, darker=True, shutter_open=False)
 
-    def _checked(self, action) -> None:
-        """`action` unless the latch came first (manual commands: an Aborted becomes the latch's refusal)."""
-        try:
-            self._act(action)
-        except Aborted:
-            raise EstopLatched(LATCHED) from None
+    def _source_action(self, what: str, action, *, darker: bool = False, **implied) -> None:
+        """A manual lamp or shutter `action`, then the source's status (`implied`: what the action implies when
+        the source cannot be read). One that makes the bench `darker` is allowed while latched; any other is
+        refused, also when an emergency stop comes first (:class:`EstopLatched`)."""
+        self._manual(what, safe=darker)
+        if darker:
+            action()
+        else:
+            try:
+                self._act(action)
+            except Aborted:
+                raise EstopLatched(LATCHED) from None
+        self._observe_source(**implied)
 
     def _stopped_where(self) -> str:
         """Where the stopped table is, in words, once it has come to rest (a profiled stop decelerates)."""
@@ -422,6 +417,7 @@ class RunEngine:
         self._progress = (len(self._done), n_points)
         self._point_times = []
         self._pose, self._timing = None, False  # read afresh: the table may have been moved or reconfigured
+        self._lineage_readings = None
         status, reason, unsafe = "completed", None, None
         answer, interrupt = None, None
         try:
@@ -738,9 +734,6 @@ class RunEngine:
             self.last_frame = reading.frame  # for a live view; never read by the engine itself
         return reading
 
-    def _interrupted(self) -> bool:
-        return self._abort or self._pause or self._interlock_tripped() is not None
-
     def _measure(self, point):
         if point.key in self._done:
             return self._recorded(point.key)
@@ -760,7 +753,8 @@ class RunEngine:
             zenith, azimuth = self.body_direction(point)
             readings = [dataclasses.replace(r, zenith_deg=zenith, azimuth_body_deg=azimuth) for r in readings]
             exposure = self._exposure()
-            self._record(point, readings, started, exposure)
+            self._record(point, readings, started, exposure, zenith, azimuth)
+            self._lineage_readings = None  # read again if a recorded point is asked for
             self._done.add(point.key)
             self._point_times.append(time.monotonic() - t0)
             done, total = len(self._done), self._progress[1]
@@ -772,12 +766,19 @@ class RunEngine:
             return readings
 
     def _recorded(self, key: str) -> list[Reading]:
-        """The readings the lineage recorded for a point (the answer to a Measure of a point already done)."""
+        """The readings the lineage recorded for a point (the answer to a Measure of a point already done).
+
+        The lineage's readings are read from the catalogue once, not once per skipped point (a resumed run skips
+        hundreds), and again only after the run recorded a point."""
+        if self._lineage_readings is None:
+            self._lineage_readings = {}
+            for record in self.catalogue.readings(self._lineage):
+                self._lineage_readings.setdefault(record.key, []).append(record)
         nan = float("nan")
         return [Reading(r.repeat, r.status, r.t_s or 0.0, dict(r.values), None,
                         r.zenith_deg if r.zenith_deg is not None else nan,
                         r.azimuth_body_deg if r.azimuth_body_deg is not None else nan)
-                for r in self.catalogue.readings(self._lineage) if r.key == key]
+                for r in self._lineage_readings.get(key, ())]
 
     def body_direction(self, point) -> tuple[float, float]:
         """The sun direction in the body frame the bench believes for a point (zenith, azimuth) [°]: seed 003's
@@ -795,8 +796,8 @@ class RunEngine:
             zenith, azimuth = body_direction_deg(point.azimuth_deg, point.zenith_stage_deg, self.geometry)
         return float(zenith), float(azimuth)
 
-    def _record(self, point, readings, started, exposure_ms: float | None) -> None:
-        zenith, azimuth_body = self.body_direction(point)
+    def _record(self, point, readings, started, exposure_ms: float | None, zenith: float,
+                azimuth_body: float) -> None:
         paths = self._save_frames(point, readings)
         rows = [{**r.values, "repeat": r.repeat, "status": r.status, "frame_path": paths.get(r.repeat), "t_s": r.t_s}
                 for r in readings]

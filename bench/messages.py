@@ -28,9 +28,9 @@ class Point:
     azimuth_deg : float
         Azimuth-stage angle [°].
     zenith_stage_deg : float
-        Zenith-stage angle Ω [°] (the true incidence follows seed 003 eq. 8).
+        Zenith-stage angle Ω [°] (the true incidence follows seed 003 eq. 8, or an alt-az fork's rotations).
     repeats : int
-        Frames to take.
+        Readings to take.
     """
 
     key: str
@@ -57,8 +57,9 @@ class Reading:
     frame : ndarray or None
         The image behind the reading (image families), kept as a file, never in the catalogue.
     zenith_deg, azimuth_body_deg : float
-        The sun direction in the sensor body frame the bench believes for the point's stage angles (seed 003
-        eq. 8 with the bench geometry), as the engine records it [°]; NaN where no bench answered (preflight).
+        The sun direction in the sensor body frame the bench believes for the point's table angles (through
+        the table's kinematics, :meth:`bench.engine.RunEngine.body_direction`), as the engine records it [°];
+        NaN where no bench answered (preflight).
     """
 
     repeat: int
@@ -145,7 +146,7 @@ class Capture(Msg):
 
 @dataclass(frozen=True)
 class Measure(Msg):
-    """A recorded point: a checkpoint, the move, `point.repeats` frames, one catalogue transaction.
+    """A recorded point: a checkpoint, the move, `point.repeats` readings, one catalogue transaction.
 
     The answer is the point's readings. A point already recorded by this run's lineage is not measured again:
     the engine answers with the recorded readings.

@@ -17,13 +17,13 @@ import dataclasses
 
 import numpy as np
 
-from calibration.centroid import SpotFlag
 from calibration.data import BenchData
 from calibration.design import FULL_SCALE_DN, BenchGeometry
 from calibration.design_of_experiments import design_experiment, order_tour, parameter_targets, stopping_decision
 from calibration.procedure import centre_crossing_deg, tilt_harmonic_deg
 
 from .campaign import Alignment, AutoExposure, Campaign, GridProcedure, PhysicalProcedure, Seed003Procedure
+from .families.cmos import EDGE_FLAGS  # a spot cut by the frame's edge: recorded, never fitted
 from .messages import (
     Capture,
     CloseShutter,
@@ -206,16 +206,12 @@ def grid_plan(procedure: GridProcedure, *, full_scale_dn: float = FULL_SCALE_DN)
     yield CloseShutter()
 
 
-#: Flags of a spot that is recorded but never fitted: a spot cut by the frame's edge has a biased centre.
-UNFITTED_FLAGS = SpotFlag.NEAR_EDGE | SpotFlag.ROI_CLIPPED
-
-
 def bench_data_of(readings) -> BenchData:
     """The fittable frames of readings answered by the engine: a spot, not flagged as cut by an edge, and the
     body direction the bench believes (the dry readings of preflight have neither, so they give no data)."""
     rows = [r for r in readings
             if r.ok and np.isfinite(r.value("x_px")) and np.isfinite(r.value("y_px"))
-            and not int(r.value("flags", 0)) & UNFITTED_FLAGS
+            and not int(r.value("flags", 0)) & EDGE_FLAGS
             and np.isfinite(r.zenith_deg) and 0.0 <= r.zenith_deg < 90.0 and np.isfinite(r.azimuth_body_deg)]
     pose = lambda name: np.array([getattr(r, name) for r in rows], dtype=float)  # noqa: E731
     spot = lambda name: np.array([r.value(name) for r in rows], dtype=float)  # noqa: E731

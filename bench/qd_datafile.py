@@ -31,6 +31,7 @@ from .datafile import (
     TRUE_COLUMNS,
     CsvTable,
     DataFileError,
+    header_numbers,
     load_calibration_json,
     read_csv_table,
     require_columns,
@@ -97,18 +98,7 @@ def _read_table(path) -> CsvTable:
 
 
 def _design(table: CsvTable) -> tuple[QdDesign, dict]:
-    given = {}
-    for key, (value, line) in table.metadata.items():
-        if key not in DESIGN_KEYS:
-            raise DataFileError(table.path, f"unknown header comment {key!r}; known: {', '.join(DESIGN_KEYS)}",
-                                line=line)
-        try:
-            number = float(value)
-        except ValueError:
-            raise DataFileError(table.path, f"header comment {key}: {value!r} is not a number", line=line) from None
-        if not math.isfinite(number):
-            raise DataFileError(table.path, f"header comment {key}: {value!r} is not a finite number", line=line)
-        given[key] = number
+    given = header_numbers(table, DESIGN_KEYS)
     try:
         return QdDesign(**given), given
     except ValueError as exc:

@@ -16,8 +16,6 @@ figures. The held-out figures of leaving grid lines out need a refit per fold an
 
 from __future__ import annotations
 
-from collections import defaultdict
-
 import numpy as np
 
 from calibration.errors import InsufficientDataError
@@ -26,7 +24,8 @@ from calibration.qd.dark import DarkModel, fit_dark, subtract_dark
 from calibration.qd.document import angles_from_photocurrents, validate_document
 
 from .families.qd import CHECK, DARK, SATURATED
-from .results import NoCalibration
+from .families.qd import summary as point_summary
+from .results import NoCalibration, calibration_record, readings_by_point, rejected_readings, split_left_out
 
 #: The family whose runs these views read
 FAMILY = "qd"
@@ -56,42 +55,30 @@ def _qd_run(catalogue, run_id: int) -> dict:
     return run
 
 
-def _record(catalogue, run_id: int, method: str | None) -> dict:
-    """The calibration `method` of the run (its chosen one when None), the latest if fitted again."""
-    matches = [c for c in catalogue.calibrations(run_id) if (c["method"] == method if method else c["chosen"])]
-    if not matches:
-        raise NoCalibration(f"run {run_id} has no {method or 'chosen'} calibration")
-    return matches[-1]
-
-
 def _chosen_or_none(catalogue, run_id: int, method: str | None) -> dict | None:
     try:
-        return _record(catalogue, run_id, method)
+        return calibration_record(catalogue, run_id, method)
     except NoCalibration:
         if method:
             raise
         return None
 
 
-def rejected_rows(document: dict) -> dict[int, str]:
-    """The readings a QD calibration rejected, by reading id (its ``rejected`` rows), with the reason of each."""
-    out = {}
-    for entry in document.get("rejected") or []:
-        if isinstance(entry, dict) and isinstance(entry.get("row"), int):
-            out.setdefault(entry["row"], str(entry.get("reason") or "rejected as an outlier"))
-    return out
+def _left_out_reason(reading, rejected: dict[int, str]) -> str | None:
+    """Why every QD fit, or the calibration that `rejected` its readings (reading id → reason), left the reading
+    out; None when it was fitted."""
+    if reading.status == SATURATED:
+        return SATURATED_REASON
+    return reading.status if not reading.ok else rejected.get(reading.id)
 
 
-def _readings_by_point(catalogue, run_ids) -> dict[int, list]:
-    by_point = defaultdict(list)
-    for reading in catalogue.readings(run_ids):
-        by_point[reading.point_id].append(reading)
-    return by_point
-
-
-def _true_angles(zenith_deg, azimuth_deg) -> tuple[float, float]:
-    alpha, beta = projection_angles(float(zenith_deg), float(azimuth_deg))
-    return float(alpha), float(beta)
+def _true_angles(points) -> list[tuple[float, float]]:
+    """The true (α, β) of each lit point (seed 002 eq. 2.2), computed at once for all of them."""
+    if not points:
+        return []
+    alpha, beta = projection_angles(np.array([float(p["zenith_deg"]) for p in points]),
+                                    np.array([float(p["azimuth_body_deg"]) for p in points]))
+    return [(float(a), float(b)) for a, b in zip(np.atleast_1d(alpha), np.atleast_1d(beta))]
 
 
 # --- the quadrant currents of every point -------------------------------------------------------------------
@@ -102,21 +89,22 @@ def qd_currents(catalogue, run_id: int) -> dict:
     temperature; `n_saturated` counts the readings with a clipped channel."""
     _qd_run(catalogue, run_id)
     lineage = catalogue.lineage(run_id)
-    readings = _readings_by_point(catalogue, lineage)
+    readings = readings_by_point(catalogue.readings(lineage))
+    points = catalogue.points(lineage)
+    lit = iter(_true_angles([p for p in points if p["stage"] != DARK]))
     data = []
-    for index, point in enumerate(catalogue.points(lineage), start=1):
+    for index, point in enumerate(points, start=1):
         rows = readings.get(point["id"], [])
         ok = [r for r in rows if r.ok]
-        currents = np.mean([r.values["currents_a"] for r in ok], axis=0) if ok else None
-        temperature = float(np.mean([r.values["temperature_c"] for r in ok])) if ok else None
+        mean = point_summary(ok)  # the family's: the mean currents and temperature of the ok readings
+        currents = mean["currents_a"]
         dark = point["stage"] == DARK
-        alpha, beta = (None, None) if dark else _true_angles(point["zenith_deg"], point["azimuth_body_deg"])
+        alpha, beta = (None, None) if dark else next(lit)
         data.append({"id": point["id"], "run_id": point["run_id"], "index": index, "key": point["key"],
                      "stage": point["stage"], "zenith_deg": None if dark else point["zenith_deg"],
                      "azimuth_deg": None if dark else point["azimuth_body_deg"], "alpha_deg": alpha, "beta_deg": beta,
-                     "currents_a": None if currents is None else [float(c) for c in currents],
-                     "sum_a": None if currents is None else float(np.sum(currents)), "temperature_c": temperature,
-                     "n_readings": len(rows), "n_ok": len(ok),
+                     "currents_a": currents, "sum_a": None if currents is None else float(np.sum(currents)),
+                     "temperature_c": mean["temperature_c"], "n_readings": len(rows), "n_ok": len(ok),
                      "n_saturated": sum(1 for r in rows if r.status == SATURATED)})
     return {"run_id": run_id, "data": data, "count": len(data)}
 
@@ -138,15 +126,13 @@ def qd_dark(catalogue, run_id: int, method: str | None = None) -> dict:
     _qd_run(catalogue, run_id)
     lineage = catalogue.lineage(run_id)
     record = _chosen_or_none(catalogue, run_id, method)
-    rejected = rejected_rows(record["document"]) if record else {}
+    rejected = rejected_readings(record["document"]) if record else {}
     rows = catalogue.readings(lineage)
     dark_rows = [r for r in rows if r.stage == DARK]
     readings = [{"reading_id": r.id, "key": r.key, "temperature_c": r.values.get("temperature_c"),
-                 "currents_a": r.values.get("currents_a"),
-                 "left_out": (SATURATED_REASON if r.status == SATURATED else
-                              r.status if not r.ok else rejected.get(r.id))}
+                 "currents_a": r.values.get("currents_a"), "left_out": _left_out_reason(r, rejected)}
                 for r in dark_rows]
-    used = [r for r in dark_rows if r.ok and r.id not in rejected]
+    used = [r for r in dark_rows if _left_out_reason(r, rejected) is None]
     light_t = [r.values["temperature_c"] for r in rows if r.ok and r.stage != DARK]
     dark_t = [r.values["temperature_c"] for r in used]
     model = parts = None
@@ -198,37 +184,33 @@ def qd_error_map(catalogue, run_id: int, method: str | None = None) -> dict:
     Raises :class:`~bench.results.NoCalibration` when the run has no such calibration; the document's own
     format errors (:class:`calibration.errors.CalibrationFormatError`) pass through."""
     _qd_run(catalogue, run_id)
-    record = _record(catalogue, run_id, method)
+    record = calibration_record(catalogue, run_id, method)
     document = record["document"]
     validate_document(document)
     dark = DarkModel.from_dict(document["dark"])
-    rejected = rejected_rows(document)
+    rejected = rejected_readings(document)
     lineage = catalogue.lineage(run_id)
-    readings = _readings_by_point(catalogue, lineage)
-    directions, photocurrents = [], []
-    for point in catalogue.points(lineage):
-        if point["stage"] == DARK:
-            continue
+    readings = readings_by_point(catalogue.readings(lineage))
+    lit = [p for p in catalogue.points(lineage) if p["stage"] != DARK]
+    directions, measured = [], []
+    for point, (alpha, beta) in zip(lit, _true_angles(lit), strict=True):
         rows = readings.get(point["id"], [])
-        left_out = [{"reading_id": r.id, "reason": SATURATED_REASON if r.status == SATURATED else
-                     (r.status if not r.ok else rejected[r.id])}
-                    for r in rows if not r.ok or r.id in rejected]
-        out = {entry["reading_id"] for entry in left_out}
-        used = [r for r in rows if r.id not in out]
-        measured = used or [r for r in rows if r.values.get("currents_a") is not None]
-        if not measured:  # nothing was read there: nothing to apply the calibration to
+        used, left_out, excluded = split_left_out(rows, lambda r: _left_out_reason(r, rejected))
+        applied = used or [r for r in rows if r.values.get("currents_a") is not None]
+        if not applied:  # nothing was read there: nothing to apply the calibration to
             continue
-        photo = subtract_dark([r.values["currents_a"] for r in measured],
-                              [r.values["temperature_c"] for r in measured], dark)  # seed 002 §2.1
-        photocurrents.append(np.mean(photo, axis=0))
-        alpha, beta = _true_angles(point["zenith_deg"], point["azimuth_body_deg"])
-        reasons = list(dict.fromkeys(entry["reason"] for entry in left_out))
+        measured.append(applied)
         directions.append({"id": point["id"], "key": point["key"], "stage": point["stage"],
                            "kind": "check" if point["stage"] == CHECK else "node",
                            "alpha_deg": alpha, "beta_deg": beta, "zenith_deg": point["zenith_deg"],
                            "azimuth_deg": point["azimuth_body_deg"], "n_readings": len(used),
-                           "excluded": "; ".join(reasons) if not used else None, "readings_left_out": left_out})
+                           "excluded": excluded, "readings_left_out": left_out})
     if directions:
+        # the dark model subtracted from every reading at once (seed 002 §2.1), then averaged per direction
+        rows = [r for applied in measured for r in applied]
+        photo = subtract_dark([r.values["currents_a"] for r in rows], [r.values["temperature_c"] for r in rows], dark)
+        ends = np.cumsum([len(applied) for applied in measured])
+        photocurrents = [np.mean(photo[end - len(applied):end], axis=0) for end, applied in zip(ends, measured)]
         with np.errstate(invalid="ignore", divide="ignore"):
             fit_a, fit_b = (np.asarray(v, dtype=float)
                             for v in angles_from_photocurrents(document, np.array(photocurrents)))
@@ -269,9 +251,11 @@ def qd_metrics(catalogue, run_id: int) -> dict:
                         "chi2_dof": m.get("chi2_dof")})
     chosen = next((c for c in reversed(records) if c["chosen"]), records[-1] if records else None)
     document = chosen["document"] if chosen else {}
-    keys = {r.id: (r.key, r.stage) for r in catalogue.readings(catalogue.lineage(run_id))}
+    entries = document.get("rejected") or []
+    # the point of each rejected reading (the lineage's readings are read only when there are some)
+    keys = {r.id: (r.key, r.stage) for r in catalogue.readings(catalogue.lineage(run_id))} if entries else {}
     rejected = []
-    for entry in document.get("rejected") or []:
+    for entry in entries:
         if not isinstance(entry, dict):
             continue
         key, stage = keys.get(entry.get("row"), (None, None))
@@ -283,4 +267,4 @@ def qd_metrics(catalogue, run_id: int) -> dict:
             "dark_model": dark.get("model"), "dark_note": dark.get("note")}
 
 
-__all__ = ["NotQdRun", "qd_currents", "qd_dark", "qd_error_map", "qd_metrics", "rejected_rows"]
+__all__ = ["NotQdRun", "qd_currents", "qd_dark", "qd_error_map", "qd_metrics"]

@@ -23,28 +23,53 @@ class NoCalibration(LookupError):
     """The run has no calibration of the method asked for."""
 
 
-def _mean_spots(catalogue, run_id: int, rejected: dict[int, str]) -> list[dict]:
+def calibration_record(catalogue, run_id: int, method: str | None) -> dict:
+    """The stored calibration `method` of the run (its chosen one when None), the latest if fitted again; raises
+    :class:`NoCalibration` when it has none."""
+    matches = [c for c in catalogue.calibrations(run_id) if (c["method"] == method if method else c["chosen"])]
+    if not matches:
+        raise NoCalibration(f"run {run_id} has no {method or 'chosen'} calibration")
+    return matches[-1]
+
+
+def readings_by_point(readings) -> dict[int, list]:
+    """Readings of the catalogue (:class:`bench.descriptor.ReadingRecord`) grouped by their point's id."""
+    by_point = defaultdict(list)
+    for reading in readings:
+        by_point[reading.point_id].append(reading)
+    return by_point
+
+
+def split_left_out(rows, reason) -> tuple[list, list[dict], str | None]:
+    """``(used, left_out, excluded)`` of a point's readings `rows`: those no fit uses are those `reason(row)`
+    names a reason for (None: used), each as ``{"reading_id", "reason"}``; `excluded` joins their reasons when
+    every row was left out (None when some was used, or there are none)."""
+    left_out = [{"reading_id": r.id, "reason": why} for r in rows if (why := reason(r)) is not None]
+    out = {entry["reading_id"] for entry in left_out}
+    used = [r for r in rows if r.id not in out]
+    excluded = "; ".join(dict.fromkeys(entry["reason"] for entry in left_out)) if rows and not used else None
+    return used, left_out, excluded
+
+
+def _mean_spots(catalogue, run_id: int, rejected: dict[int, str], readings=None) -> list[dict]:
     """The run's points in recording order, each with the mean spot of the frames a fit uses, and what was
-    left out: frames clipped at the detector's edge, and those in `rejected` (reading id → reason)."""
+    left out: frames clipped at the detector's edge, and those in `rejected` (reading id → reason). `readings`:
+    the run's, when the caller has read them already."""
     catalogue.run(run_id)  # "no run N" rather than an empty list
-    readings = defaultdict(list)
-    for reading in catalogue.readings(run_id):
-        if has_spot(reading):
-            readings[reading.point_id].append(reading)
+    if readings is None:
+        readings = catalogue.readings(run_id)
+    spots_of = readings_by_point(r for r in readings if has_spot(r))
     points = []
     for point in catalogue.points(run_id):
-        spots = readings.get(point["id"], [])
-        left_out = [{"reading_id": r.id, "reason": EDGE_REASON if clipped(r) else rejected[r.id]}
-                    for r in spots if clipped(r) or r.id in rejected]
-        out = {entry["reading_id"] for entry in left_out}
-        used = [r for r in spots if r.id not in out]
+        spots = spots_of.get(point["id"], [])
+        used, left_out, excluded = split_left_out(
+            spots, lambda r: EDGE_REASON if clipped(r) else rejected.get(r.id))
         # a point left out whole is drawn where its spots were, marked as left out
         mean_of = used or spots
         mean = ([sum(r.value(c) for r in mean_of) / len(mean_of) for c in ("x_px", "y_px")] if mean_of
                 else [None, None])
-        reasons = list(dict.fromkeys(entry["reason"] for entry in left_out))
-        points.append({**point, "n_ok": len(spots), "x_px": mean[0], "y_px": mean[1],
-                       "excluded": "; ".join(reasons) if spots and not used else None, "frames_left_out": left_out})
+        points.append({**point, "n_ok": len(spots), "x_px": mean[0], "y_px": mean[1], "excluded": excluded,
+                       "frames_left_out": left_out})
     return points
 
 
@@ -56,22 +81,24 @@ def point_means(catalogue, run_id: int) -> list[dict]:
     return _mean_spots(catalogue, run_id, {})
 
 
-def point_summaries(catalogue, run_id: int) -> dict[int, dict]:
-    """What the run's family shows of each point's readings live (:attr:`bench.families.Family.summary`, as
-    the engine's ``point`` event carries it: spots, currents …), by point id: no family-specific code here."""
+def run_points(catalogue, run_id: int) -> list[dict]:
+    """:func:`point_means`, each point with its `summary`: what the run's family shows of the point's readings
+    live (:attr:`bench.families.Family.summary`, as the engine's ``point`` event carries it: spots, currents …;
+    None for a point without readings). No family-specific code here; the readings are read once."""
     from .families import family
 
     run = catalogue.run(run_id)
     summary = family(run.get("family") or "cmos").summary
-    readings = defaultdict(list)
-    for reading in catalogue.readings(run_id):
-        readings[reading.point_id].append(reading)
-    return {point_id: summary(rows) for point_id, rows in readings.items()}
+    readings = catalogue.readings(run_id)
+    by_point = readings_by_point(readings)
+    return [{**p, "summary": summary(by_point[p["id"]]) if p["id"] in by_point else None}
+            for p in _mean_spots(catalogue, run_id, {}, readings)]
 
 
 def rejected_readings(document: dict) -> dict[int, str]:
-    """The frames a calibration rejected as outliers, by reading id (the document's ``rejected`` rows), with
-    the reason of each; frames without a row (older or CSV-fitted documents) cannot be placed and are left."""
+    """The readings (a CMOS run's frames) a calibration rejected as outliers, by reading id (the document's
+    ``rejected`` rows), with the reason of each; those without a row (older or CSV-fitted documents) cannot be
+    placed and are left."""
     out = {}
     for entry in document.get("rejected") or []:
         if isinstance(entry, dict) and isinstance(entry.get("row"), int):
@@ -94,10 +121,7 @@ def fit_residuals(catalogue, run_id: int, method: str | None = None) -> dict:
     (:class:`calibration.errors.CalibrationFormatError`) pass through.
     """
     catalogue.run(run_id)
-    matches = [c for c in catalogue.calibrations(run_id) if (c["method"] == method if method else c["chosen"])]
-    if not matches:
-        raise NoCalibration(f"run {run_id} has no {method or 'chosen'} calibration")
-    record = matches[-1]
+    record = calibration_record(catalogue, run_id, method)
     points = [p for p in _mean_spots(catalogue, run_id, rejected_readings(record["document"]))
               if p["x_px"] is not None]
     calibration = calibration_from_dict(record["document"])

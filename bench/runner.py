@@ -22,7 +22,7 @@ from .catalogue import LIVE_RUN_STATUSES
 from .datafile import calibration_document
 from .descriptor import ReadingRecord
 from .engine import RunEngine
-from .families import family_of_sensor, table_mount
+from .families import family_of_sensor, journal_fit, table_mount
 from .families.cmos import EDGE_FLAGS
 from .interlocks import SIMULATED_TIMING
 from .plans import alignment_violations
@@ -135,7 +135,12 @@ def bench_data(catalogue, run_ids, *, sensor_id: str | None = None) -> BenchData
     Frames whose centroid failed, or whose spot touches the frame's edge (a clipped spot's centre is
     biased), stay in the catalogue but are left out.
     """
-    rows = [r for r in catalogue.readings(run_ids) if has_spot(r) and not clipped(r)]
+    return _bench_data(catalogue.readings(run_ids), run_ids, sensor_id)
+
+
+def _bench_data(readings: list[ReadingRecord], run_ids, sensor_id: str | None) -> BenchData:
+    """:func:`bench_data` of the runs' `readings`, as the catalogue gave them."""
+    rows = [r for r in readings if has_spot(r) and not clipped(r)]
     if not rows:
         from calibration.errors import InsufficientDataError
         raise InsufficientDataError(f"runs {list(run_ids)} recorded no usable frame")
@@ -159,10 +164,11 @@ def fit_run(catalogue, run_id: int, methods, design=None, geometry: GeometryPrio
     journal = journal or (lambda kind, message: catalogue.log_event(run_id, kind, message))
     run = catalogue.run(run_id)
     lineage = catalogue.lineage(run_id)
-    data = bench_data(catalogue, lineage, sensor_id=run["sensor_id"])
+    readings = catalogue.readings(lineage)
+    data = _bench_data(readings, lineage, run["sensor_id"])
     stage = None
     if geometry is not None:
-        rows = {r.id: r for r in catalogue.readings(lineage)}
+        rows = {r.id: r for r in readings}
         stage = StageFrames(np.array([rows[i].azimuth_deg for i in data.frame_id], dtype=float),
                             np.array([rows[i].zenith_stage_deg for i in data.frame_id], dtype=float), geometry)
     outcome = calibrate(data, methods=list(methods), design=design, stage=stage)
@@ -174,15 +180,9 @@ def fit_run(catalogue, run_id: int, methods, design=None, geometry: GeometryPrio
                                         software=software_version(), outcome=outcome, design=design)
         document.pop("created_utc", None)  # the catalogue stamps its own time
         catalogue.add_calibration(run_id, report.method, document, report.to_dict(), report is chosen)
-    journal("fit", f"fitted {len(data)} frames; chosen {chosen.method}, held-out vector RMS "
-                                       f"{chosen.heldout.rms_vector_deg:.4f}°" if chosen.heldout else
-                        f"fitted {len(data)} frames; chosen {chosen.method}")
-    if outcome.rejected:
-        journal("fit", f"{len(outcome.rejected)} frame(s) rejected: "
-                            + "; ".join(r.describe() for r in outcome.rejected[:10])
-                            + (" …" if len(outcome.rejected) > 10 else ""))
-    for warning in outcome.warnings:
-        journal("fit", f"warning: {warning}")
+    journal_fit(journal, f"fitted {len(data)} frames; chosen {chosen.method}"
+                + (f", held-out vector RMS {chosen.heldout.rms_vector_deg:.4f}°" if chosen.heldout else ""),
+                outcome.rejected, outcome.warnings, "frame")
     return outcome.reports
 
 
@@ -382,7 +382,7 @@ def fit_inputs(session: Session):
     given = getattr(session.bench_file.devices.sensor, "design", None)  # the bench file's word wins
     design = given.sensor_design() if given is not None else (sim.sensor_design if sim is not None
                                                                else DEFAULT_SENSOR)
-    if sim is not None and sim.axis_order != "azimuth-on-zenith":
+    if session.engine.axis_order != "azimuth-on-zenith":  # a simulated or a real alt-az mount alike
         return design, None
     return design, GeometryPrior.from_bench(session.bench_file.bench_geometry())
 

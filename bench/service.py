@@ -24,7 +24,6 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import asdict
 
 import numpy as np
 
@@ -575,7 +574,7 @@ class BenchService:
             return
         finally:
             self._bench_lock.release()
-        self._status.update(table=table, source=asdict(source), sensor=sensor, error=None,
+        self._status.update(table=table, source=dataclasses.asdict(source), sensor=sensor, error=None,
                             engine={"state": self.engine.state.value, **self._progress}, updated_utc=_utc_now())
         self.bus.publish(BenchEvent("status", None, {k: self._status[k] for k in ("table", "source", "sensor")}))
 

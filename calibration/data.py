@@ -133,7 +133,7 @@ class BenchData:
         if off.size == 0:
             return labels
         az = self.azimuth_deg[off]
-        order, group = _chained_groups(az, tolerance_deg)
+        order, group = chained_groups(az, tolerance_deg)
         # the circle closes: a group just below 360° is the same direction as the one at 0°
         if group[-1] > 0 and az[order][0] + 360.0 - az[order][-1] <= tolerance_deg:
             group[group == group[-1]] = 0
@@ -152,7 +152,7 @@ class BenchData:
         off = np.flatnonzero(~self.normal_incidence)
         if off.size == 0:
             return labels
-        order, ring = _chained_groups(self.zenith_deg[off], tolerance_deg)
+        order, ring = chained_groups(self.zenith_deg[off], tolerance_deg)
         interior = (ring > 0) & (ring < ring[-1])
         labels[off[order][interior]] = ring[interior]
         return labels
@@ -173,8 +173,14 @@ class BenchData:
             raise InsufficientDataError(f"{method}: too few points, {len(self)}; needs at least {min_points}")
 
 
-def _chained_groups(values: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+def chained_groups(values: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
     """Sort `values` and number the groups whose neighbours lie within `tolerance`: (order, group of each
-    sorted value)."""
+    sorted value), groups numbered in increasing value.
+
+    References
+    ----------
+    seed 003, §4.2 (a grid's azimuths and zenith rings, read back with a stage's jitter).
+    """
+    values = np.asarray(values, dtype=float)
     order = np.argsort(values)
     return order, np.concatenate([[0], np.cumsum(np.diff(values[order]) > tolerance)])

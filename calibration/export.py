@@ -25,20 +25,22 @@ from .models.seed003 import Seed003Calibration, Seed003SectorCalibration, Seed00
 from .pinhole import detector_rotation
 
 
-def _num(value: float) -> str:
+def c_double(value: float) -> str:
+    """A finite double as C source text: Python's shortest round-trip repr, so C reads the same binary value."""
     value = float(value)
     if not math.isfinite(value):  # a C header with `nan` compiles and answers garbage on the satellite
         raise CalibrationError(f"the calibration holds a non-finite coefficient ({value}); no C header written")
     return repr(value)
 
 
-def _comment_safe(value) -> str:
+def comment_safe(value) -> str:
     """A value as text that cannot end the C comment it sits in."""
     return str(value).replace("*/", "* /").replace("\n", " ")
 
 
-def _array(values) -> str:
-    return "{" + ", ".join(_num(v) for v in values) + "}"
+def c_array(values) -> str:
+    """A C initializer ``{a, b, …}`` of finite doubles (:func:`c_double`)."""
+    return "{" + ", ".join(c_double(v) for v in values) + "}"
 
 
 _PRELUDE = """\
@@ -153,12 +155,12 @@ _MASK_REFINEMENT = """for (int it = 0; it < 6; ++it) {  /* Newton in the tangent
 
 def _seed003_constants(cal: Seed003Calibration) -> list[str]:
     return [
-        f"static const double SB_X0_PX = {_num(cal.x0_px)};",
-        f"static const double SB_Y0_PX = {_num(cal.y0_px)};",
-        f"static const double SB_RADIUS_SCALE_PX = {_num(cal.radius_scale_px)};",
-        f"static const double SB_ZENITH_COEF[7] = {_array(cal.zenith_coefficients)};",
-        f"static const double SB_AZIMUTH_SLOPE = {_num(cal.azimuth_slope)};",
-        f"static const double SB_AZIMUTH_OFFSET_DEG = {_num(cal.azimuth_offset_deg)};",
+        f"static const double SB_X0_PX = {c_double(cal.x0_px)};",
+        f"static const double SB_Y0_PX = {c_double(cal.y0_px)};",
+        f"static const double SB_RADIUS_SCALE_PX = {c_double(cal.radius_scale_px)};",
+        f"static const double SB_ZENITH_COEF[7] = {c_array(cal.zenith_coefficients)};",
+        f"static const double SB_AZIMUTH_SLOPE = {c_double(cal.azimuth_slope)};",
+        f"static const double SB_AZIMUTH_OFFSET_DEG = {c_double(cal.azimuth_offset_deg)};",
     ]
 
 
@@ -167,17 +169,17 @@ def _seed003_header(cal: Seed003Calibration) -> tuple[list[str], str]:
     zenith = "sb_poly6(SB_ZENITH_COEF, r / SB_RADIUS_SCALE_PX)"
     if isinstance(cal, Seed003TiltCalibration):
         tilt, tilt_azimuth = combined_tilt(cal.tilt_x_deg, cal.tilt_y_deg)  # seed 003 eq. 14
-        constants += [f"static const double SB_TILT_DEG = {_num(tilt)};  /* theta' of eq. 14 */",
-                      f"static const double SB_TILT_AZIMUTH_DEG = {_num(tilt_azimuth)};  /* phi' of eq. 14 */"]
+        constants += [f"static const double SB_TILT_DEG = {c_double(tilt)};  /* theta' of eq. 14 */",
+                      f"static const double SB_TILT_AZIMUTH_DEG = {c_double(tilt_azimuth)};  /* phi' of eq. 14 */"]
         zenith += (" + asin(sin(SB_TILT_DEG * SB_RAD) * cos((phi - SB_TILT_AZIMUTH_DEG) * SB_RAD)) * SB_DEG"
                    "  /* eqs. 15-16 */")
     if isinstance(cal, Seed003SectorCalibration):
-        rows = [_array(c if len(c) else cal.zenith_coefficients) for c in cal.sector_coefficients]
+        rows = [c_array(c if len(c) else cal.zenith_coefficients) for c in cal.sector_coefficients]
         reach = cal.sector_radius_max_px or (float("inf"),) * 8
         constants.append("static const double SB_SECTOR_COEF[8][7] = {\n    " + ",\n    ".join(rows) + "};")
         constants.append("/* beyond its fitted radius a sector hands over to the pooled polynomial */")
         constants.append("static const double SB_SECTOR_REACH_PX[8] = "
-                         + _array(x * 1.01 if len(c) else -1.0 for x, c in zip(reach, cal.sector_coefficients)) + ";")
+                         + c_array(x * 1.01 if len(c) else -1.0 for x, c in zip(reach, cal.sector_coefficients)) + ";")
         zenith = ("(r <= SB_SECTOR_REACH_PX[((int)floor(phi / 45.0)) % 8] ? "
                   "sb_poly6(SB_SECTOR_COEF[((int)floor(phi / 45.0)) % 8], r / SB_RADIUS_SCALE_PX) : "
                   "sb_poly6(SB_ZENITH_COEF, r / SB_RADIUS_SCALE_PX))  /* §4.5 */")
@@ -187,18 +189,18 @@ def _seed003_header(cal: Seed003Calibration) -> tuple[list[str], str]:
 def _physical_header(cal: PhysicalCalibration) -> tuple[list[str], str]:
     m = detector_rotation(cal.tilt_x_deg, cal.tilt_y_deg, cal.rotation_deg)
     constants = [
-        f"static const double SB_X0_PX = {_num(cal.x0_px)};",
-        f"static const double SB_Y0_PX = {_num(cal.y0_px)};",
-        f"static const double SB_GAP_MM = {_num(cal.gap_mm)};",
-        f"static const double SB_GLASS_MM = {_num(cal.glass_mm)};",
-        f"static const double SB_GLASS_INDEX = {_num(cal.glass_index)};",
-        f"static const double SB_PIXEL_PITCH_MM = {_num(cal.pixel_pitch_mm)};",
+        f"static const double SB_X0_PX = {c_double(cal.x0_px)};",
+        f"static const double SB_Y0_PX = {c_double(cal.y0_px)};",
+        f"static const double SB_GAP_MM = {c_double(cal.gap_mm)};",
+        f"static const double SB_GLASS_MM = {c_double(cal.glass_mm)};",
+        f"static const double SB_GLASS_INDEX = {c_double(cal.glass_index)};",
+        f"static const double SB_PIXEL_PITCH_MM = {c_double(cal.pixel_pitch_mm)};",
         f"static const double SB_HANDEDNESS = {'-1.0' if cal.mirrored else '1.0'};",
-        f"static const double SB_APERTURE_C = {_num(cal.aperture_c)};",
-        f"static const double SB_APERTURE_S = {_num(cal.aperture_s)};",
+        f"static const double SB_APERTURE_C = {c_double(cal.aperture_c)};",
+        f"static const double SB_APERTURE_S = {c_double(cal.aperture_s)};",
         f"/* detector tilt alpha = {cal.tilt_x_deg!r} deg, beta = {cal.tilt_y_deg!r} deg, "
         f"in-plane rotation = {cal.rotation_deg!r} deg */",
-        "static const double SB_DETECTOR[3][3] = {\n    " + ",\n    ".join(_array(row) for row in m) + "};",
+        "static const double SB_DETECTOR[3][3] = {\n    " + ",\n    ".join(c_array(row) for row in m) + "};",
     ]
     if cal.glass_on_mask and cal.glass_mm > 0:
         return constants, _MASK_FORWARD + "\n" + _PHYSICAL_BODY.replace("MASK_GLASS_REFINEMENT", _MASK_REFINEMENT)
@@ -222,7 +224,7 @@ def c_header(calibration: Calibration, *, sensor_id: str | None = None, design: 
         f"/* sunbench calibration: method {calibration.method}, sensor {sensor_id or 'unknown'}.",
         "   Generated by `sunbench`; do not edit. Angles in degrees, spot centres in pixels",
         "   (x right, y down, origin at the centre of pixel 0,0); body frame +z = boresight."
-        + "".join(f"\n   {key}: {_comment_safe(value)}"
+        + "".join(f"\n   {key}: {comment_safe(value)}"
                   for key, value in (provenance or {}).items() if value is not None)
         + " */",
         f"#ifndef {guard}",
@@ -231,7 +233,7 @@ def c_header(calibration: Calibration, *, sensor_id: str | None = None, design: 
         _PRELUDE,
         f'#define SB_CALIBRATION_METHOD "{calibration.method}"',
         *([f"#define SB_DETECTOR_WIDTH_PX {design.width_px}", f"#define SB_DETECTOR_HEIGHT_PX {design.height_px}",
-           f"#define SB_DESIGN_PIXEL_PITCH_MM {_num(design.pixel_pitch_mm)}"] if design is not None else []),
+           f"#define SB_DESIGN_PIXEL_PITCH_MM {c_double(design.pixel_pitch_mm)}"] if design is not None else []),
         *constants,
         "",
         body,

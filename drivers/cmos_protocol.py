@@ -42,21 +42,13 @@ import struct
 
 import numpy as np
 
-# re-exported: the framing the CMOS and QD modules share (drivers/framed_protocol.py), under the names the driver,
-# the simulator and the tests import from here
+# re-exported: the names of the shared framing (drivers/framed_protocol.py) that the driver, the simulator and the
+# tests take from here
 from .framed_protocol import (  # noqa: F401 - re-exported
-    BAD_CRC,
     BAD_LENGTH,
-    CRC,
     ERROR,
-    ERROR_MESSAGES,
-    NOT_READY,
     OUT_OF_RANGE,
-    REPLY,
-    UNKNOWN_COMMAND,
-    CrcMismatch,
     Frame,
-    FrameError,
     FrameFormat,
     centi,
     pad,
@@ -64,8 +56,6 @@ from .framed_protocol import (  # noqa: F401 - re-exported
 )
 
 FORMAT = FrameFormat(sync=b"\xa5\x5a", length=struct.Struct("<I"), max_payload=2 * 1024 * 1024)
-SYNC = FORMAT.sync
-HEADER = FORMAT.header  # <2sBBI: sync, code, sequence, length
 MAX_PAYLOAD = FORMAT.max_payload
 encode_frame = FORMAT.encode  # (code, sequence, payload=b"") -> one frame: sync, header, payload, CRC-32
 decode_frame = FORMAT.decode  # (buffer) -> (Frame or None while incomplete, bytes consumed); raises FrameError

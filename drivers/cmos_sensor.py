@@ -73,7 +73,6 @@ class CmosSunSensor(FramedModule, ImageSensor):
     reports_serial = True  # IDENTIFY answers the module's own serial
     frame_format = wire.FORMAT
     module_error = SensorError
-    shortest_reply = wire.HEADER.size + wire.CRC.size  # a reply cut inside its header needs an empty frame's 12
 
     def __init__(self, port: Port, *, exposure_range_ms=(0.01, 1000.0), packing: int = wire.PACKED10,
                  frame_timeout_s: float = 5.0, retries: int = DEFAULT_RETRIES, name: str | None = None):

@@ -173,9 +173,6 @@ class FramedModule:
 
     frame_format: ClassVar[FrameFormat]
     module_error: ClassVar[type[ModuleError]] = ModuleError
-    #: The length a reply cut short before its length field arrived is said to need, in the "cut short after
-    #: n of m bytes" error [bytes]; None: the header's.
-    shortest_reply: ClassVar[int | None] = None
 
     port: Port
     name: str
@@ -248,11 +245,8 @@ class FramedModule:
                 problem = (f"reply to sequence {frame.sequence}, expected {sequence}", raw)  # a late reply
                 continue
             if final:
-                if buf:  # a frame began and stopped
-                    if len(buf) >= fmt.header.size:
-                        total = fmt.frame_length(buf)
-                    else:
-                        total = fmt.header.size if self.shortest_reply is None else self.shortest_reply
+                if buf:  # a frame began and stopped (cut inside its header: it needed an empty frame's length)
+                    total = fmt.frame_length(buf) if len(buf) >= fmt.header.size else fmt.header.size + CRC.size
                     raise DeviceTimeout(self.name, f"reply cut short after {len(buf)} of {total} bytes",
                                         received=bytes(buf[:64]))
                 if problem:
@@ -287,14 +281,17 @@ class FramedResponder:
     its sequence byte as received, and garbage is dropped. Replies that take simulated time are held back by
     :meth:`_hold_until` and come out of :meth:`unsolicited` when it has passed.
 
-    The simulator sets :attr:`frame_format`, and in its constructor :attr:`corrupt_crc` (back door: the next
-    replies carry a wrong CRC) and ``_held``; it has a `world` with a `clock`.
+    The simulator sets :attr:`frame_format` and has a `world` with a `clock`. Back door: :attr:`corrupt_crc`, the
+    number of next replies that carry a wrong CRC.
     """
 
     frame_format: ClassVar[FrameFormat]
-    corrupt_crc: int
     world: Any
-    _held: list[tuple[float, bytes]]  # (ready time, reply) of the commands in progress
+
+    def __init__(self) -> None:
+        super().__init__()  # SimDevice's, next in the simulator's bases
+        self.corrupt_crc = 0
+        self._held: list[tuple[float, bytes]] = []  # (ready time, reply) of the commands in progress
 
     def _commands(self) -> dict[int, Callable[[Frame], bytes]]:  # pragma: no cover - abstract
         """The handler of each command code."""

@@ -63,21 +63,17 @@ from __future__ import annotations
 
 import struct
 
-# re-exported: the framing the QD and CMOS modules share (drivers/framed_protocol.py), under the names the driver,
-# the simulator and the tests import from here
+# re-exported: the names of the shared framing (drivers/framed_protocol.py) that the driver, the simulator and the
+# tests take from here
 from .framed_protocol import (  # noqa: F401 - re-exported
     BAD_CRC,
     BAD_LENGTH,
-    CRC,
     ERROR,
-    ERROR_MESSAGES,
     NOT_READY,
     OUT_OF_RANGE,
     REPLY,
     UNKNOWN_COMMAND,
-    CrcMismatch,
     Frame,
-    FrameError,
     FrameFormat,
     centi,
     pad,
@@ -85,17 +81,13 @@ from .framed_protocol import (  # noqa: F401 - re-exported
 )
 
 FORMAT = FrameFormat(sync=b"\xa5\x51", length=struct.Struct("<H"), max_payload=255)
-SYNC = FORMAT.sync
-HEADER = FORMAT.header  # <2sBBH: sync, code, sequence, length
 MAX_PAYLOAD = FORMAT.max_payload
 encode_frame = FORMAT.encode  # (code, sequence, payload=b"") -> one frame: sync, header, payload, CRC-32
 decode_frame = FORMAT.decode  # (buffer) -> (Frame or None while incomplete, bytes consumed); raises FrameError
-frame_length = FORMAT.frame_length  # (header) -> whole length of the frame whose first HEADER.size bytes it is
 
 IDENTIFY, READ, SET_TEMPERATURE, GET_TEMPERATURE = 0x01, 0x02, 0x03, 0x04
 
 TEC_OFF, TEC_ON = 0, 1
-QUADRANTS = 4
 
 IDENTITY = struct.Struct("<16s16s8sBH4fffIH")
 READ_REQUEST = struct.Struct("<H")

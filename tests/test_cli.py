@@ -11,21 +11,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from clitools import ALL_METHODS, assert_user_error_text, flat, invoke, method_rows
+from clitools import ALL_METHODS, assert_user_error, flat, invoke, method_rows
 
 from bench.datafile import read_calibration, write_bench_csv
 from calibration.geometry import angular_error_deg
 from calibration.models import METHODS
 from calibration.synthetic import synthetic_bench_data
-
-
-def assert_user_error(result, *fragments: str) -> str:
-    """Exit code 2, one error line naming the problem, no traceback."""
-    assert result.exception is None or isinstance(result.exception, SystemExit)
-    assert "Traceback" not in result.output
-    message = assert_user_error_text(result.stderr, result.exit_code, *fragments)
-    assert result.stdout == ""
-    return message
 
 
 @pytest.fixture(scope="module")
@@ -414,9 +405,9 @@ def test_an_unknown_header_comment_is_refused_naming_its_line(tmp_path):
 def test_sim_serves_the_chosen_table_and_says_how_clients_connect(tmp_path):
     """`sunbench sim --table smc100`: `role url` lines (what scripts parse), each followed by how known clients
     connect; the driver then homes and moves the served SMC100 over TCP."""
-    import time
+    import signal
 
-    from clitools import ENV, SUNBENCH
+    from clitools import ENV, SUNBENCH, read_sim_listing
 
     from drivers.interfaces import AxisMotion
     from drivers.newport_smc100 import Smc100Axis
@@ -425,18 +416,7 @@ def test_sim_serves_the_chosen_table_and_says_how_clients_connect(tmp_path):
                              "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
                             cwd=tmp_path, stdin=subprocess.DEVNULL)
     try:
-        urls, hints, role = {}, {}, None
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline:
-            line = proc.stdout.readline()
-            if not line or line.startswith("serving"):
-                break
-            parts = line.split()
-            if len(parts) == 2 and parts[1].startswith("socket://"):
-                role = parts[0]
-                urls[role] = parts[1]
-            elif role and line.startswith(" "):
-                hints.setdefault(role, []).append(line.strip())
+        urls, hints = read_sim_listing(proc.stdout)
         assert set(urls) == {"table-azimuth", "table-zenith", "led", "sensor"}, (urls, proc.stderr.read())
         port = urls["table-azimuth"].rsplit(":", 1)[1]
         assert any(h.startswith("QMI:") and f'"tcp:127.0.0.1:{port}"' in h for h in hints["table-azimuth"])
@@ -455,9 +435,13 @@ def test_sim_serves_the_chosen_table_and_says_how_clients_connect(tmp_path):
         finally:
             axis.close()
     finally:
-        proc.terminate()
-        proc.wait(timeout=10)
-    assert proc.returncode is not None
+        proc.send_signal(signal.SIGINT)  # Ctrl-C, as "serving; Ctrl-C to stop" says
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()  # never left behind; the assertion below then fails
+            proc.wait()
+    assert proc.returncode == 0, proc.stderr.read()  # stopped cleanly: servers closed, no traceback
 
 
 def test_sim_refuses_an_unknown_table():

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import yaml
 from ccompiler import c_compiler
-from clitools import assert_user_error_text, flat, invoke, sunbench_process
+from clitools import assert_user_error, assert_user_error_text, flat, invoke, method_rows, sunbench_process
 
 from bench.benchfile import BenchFile
 from bench.campaign import Campaign, QdDarkSweep, QdGridProcedure
@@ -26,23 +26,6 @@ from calibration.qd.document import apply_document
 
 ROOT = Path(__file__).resolve().parents[1]
 QD_METHODS = ("physical", "polynomial", "geometric")
-
-
-def assert_user_error(result, *fragments: str) -> str:
-    """Exit code 2, one error line naming the problem, no traceback."""
-    assert result.exception is None or isinstance(result.exception, SystemExit)
-    assert "Traceback" not in result.output
-    return assert_user_error_text(result.stderr, result.exit_code, *fragments)
-
-
-def qd_rows(stdout: str) -> dict[str, bool]:
-    """Method name → chosen ('*'), from the rows of the QD metrics table."""
-    rows = {}
-    for line in stdout.splitlines():
-        m = re.match(r"^\W*(physical|polynomial|geometric)( \*)?\s+\│?\s*[\d—]", line)
-        if m:
-            rows[m.group(1)] = bool(m.group(2))
-    return rows
 
 
 @pytest.fixture(scope="module")
@@ -121,7 +104,7 @@ def test_export_to_stdout_names_no_file(qd_run):
 
 def test_fit_prints_every_method_and_the_chosen_one(fitted):
     result, _, _ = fitted
-    rows = qd_rows(result.stdout)
+    rows = method_rows(result.stdout, QD_METHODS)
     assert set(rows) == set(QD_METHODS), result.stdout
     assert [m for m, chosen in rows.items() if chosen] == ["physical"]
     text = flat(result.stdout)
@@ -157,13 +140,15 @@ def test_fit_is_accurate_held_out_on_the_simulated_bench(fitted):
 
 
 def test_fit_writes_the_qd_calibration_document(fitted, qd_csv):
-    _, cal, _ = fitted
+    result, cal, _ = fitted
     document = json.loads(cal.read_text())
     assert (document["format"], document["family"], document["version"]) == ("sunbench.calibration", "qd", 1)
     assert document["method"] == "physical" and document["sensor_id"] == "QD-0001"
     assert document["source"] == str(qd_csv) and document["software"].startswith("sunbench ")
     assert document["dark"]["model"] == "linear" and len(document["dark"]["quadrants"]) == 4
     assert document["rejected"] == [] and isinstance(document["warnings"], list)
+    printed = flat(result.stdout)
+    assert all(f"warning: {flat(w)}" in printed for w in document["warnings"])  # what the fit said, kept
     # the document alone turns the file's currents into its directions
     data = read_qd_csv(qd_csv)
     light = ~data.dark
@@ -185,7 +170,7 @@ def test_fit_with_a_method_keeps_that_method(workdir, qd_csv):
     cal = workdir / "geometric.json"
     result = invoke("fit", "qd", qd_csv, "--method", "geometric", "-o", cal)
     assert result.exit_code == 0, result.output
-    assert [m for m, chosen in qd_rows(result.stdout).items() if chosen] == ["geometric"]
+    assert [m for m, chosen in method_rows(result.stdout, QD_METHODS).items() if chosen] == ["geometric"]
     assert "method geometric (asked for; the best held out is physical)" in flat(result.stdout)
     document = json.loads(cal.read_text())
     assert document["method"] == "geometric" and set(document["parameters"]) >= {"x0_m", "d_m", "phi0_deg"}

@@ -499,22 +499,21 @@ def test_every_registered_family_has_a_descriptor_a_calibration_and_a_simulator(
             f"sensor's wire protocol)")
 
 
-def test_ruff_finds_nothing():
-    """The lint the project configures (pyproject.toml [tool.ruff]) is clean; ruff comes with the test extras."""
+def _assert_tool_finds_nothing(tool: str, *args: str, timeout: float) -> None:
+    """The venv's `tool ARGS`, run at the project's root, exits 0 (its findings otherwise)."""
     import subprocess
 
-    ruff = Path(sys.executable).with_name("ruff")
-    assert ruff.exists(), f"no {ruff}: install the test extras (bash scripts/setup.sh)"
-    result = subprocess.run([str(ruff), "check", "--no-cache", "--output-format", "concise", "."], cwd=ROOT,
-                            capture_output=True, text=True, timeout=120)
+    exe = Path(sys.executable).with_name(tool)
+    assert exe.exists(), f"no {exe}: install the test extras (bash scripts/setup.sh)"
+    result = subprocess.run([str(exe), *args], cwd=ROOT, capture_output=True, text=True, timeout=timeout)
     assert result.returncode == 0, result.stdout[-4000:] + result.stderr[-2000:]
+
+
+def test_ruff_finds_nothing():
+    """The lint the project configures (pyproject.toml [tool.ruff]) is clean; ruff comes with the test extras."""
+    _assert_tool_finds_nothing("ruff", "check", "--no-cache", "--output-format", "concise", ".", timeout=120)
 
 
 def test_mypy_finds_nothing_in_the_typed_seams():
     """mypy checks the modules pyproject.toml [tool.mypy] lists (the seams every family goes through)."""
-    import subprocess
-
-    mypy = Path(sys.executable).with_name("mypy")
-    assert mypy.exists(), f"no {mypy}: install the test extras (bash scripts/setup.sh)"
-    result = subprocess.run([str(mypy), "--no-incremental"], cwd=ROOT, capture_output=True, text=True, timeout=300)
-    assert result.returncode == 0, result.stdout[-4000:] + result.stderr[-2000:]
+    _assert_tool_finds_nothing("mypy", "--no-incremental", timeout=300)

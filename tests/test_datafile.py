@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from clitools import BAD_CELLS
 
 from bench.datafile import (
     DataFileError,
@@ -176,15 +177,7 @@ def test_missing_true_and_stage_columns_asks_for_stage_columns(tmp_path):
     assert "stage_zenith_deg" in str(exc) and "stage_azimuth_deg" in str(exc)
 
 
-@pytest.mark.parametrize("cell, words", [
-    ("abc", "'abc' is not a number"),
-    ("", "empty cell"),
-    ("  ", "empty cell"),
-    ("nan", "'nan' is not a finite number"),
-    ("NaN", "'NaN' is not a finite number"),
-    ("inf", "'inf' is not a finite number"),
-    ("-Infinity", "'-Infinity' is not a finite number"),
-])
+@pytest.mark.parametrize("cell, words", BAD_CELLS)
 def test_bad_cell_names_row_line_and_column(tmp_path, cell, words):
     path = _write(tmp_path, f"# header comment\n{HEADER}\n0,0,1,1\n# mid comment\n10,0,2,2\n20,90,{cell},3\n")
     exc = _error(path)

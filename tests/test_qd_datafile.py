@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from clitools import BAD_CELLS
 
 import bench.qd_datafile as qd_datafile
 from bench.datafile import DataFileError
@@ -176,14 +177,7 @@ def test_a_cmos_file_is_named_as_such(tmp_path):
     assert "CMOS" in str(exc) and "sunbench fit cmos" in str(exc)
 
 
-@pytest.mark.parametrize("cell, words", [
-    ("abc", "'abc' is not a number"),
-    ("", "empty cell"),
-    ("nan", "'nan' is not a finite number"),
-    ("NaN", "'NaN' is not a finite number"),
-    ("inf", "'inf' is not a finite number"),
-    ("-Infinity", "'-Infinity' is not a finite number"),
-])
+@pytest.mark.parametrize("cell, words", BAD_CELLS)  # the CMOS file's, "  " included: one reader
 def test_bad_current_names_row_line_and_column(tmp_path, cell, words):
     path = _write(tmp_path, f"# comment\n{HEADER}\n{LIGHT}\n# mid\n{LIGHT}\n10,0,1e-7,{cell},1e-7,1e-7,25\n")
     exc = _error(path)
@@ -282,9 +276,14 @@ def test_a_huge_file_is_refused_before_it_is_read(tmp_path, monkeypatch):
     assert "too large" in str(exc)
 
 
-def test_the_size_cap_is_far_above_a_real_grid():
-    # ±40° at 1° with check points, 3 repeats: ~39 000 rows of ~130 bytes
-    assert qd_datafile.MAX_FILE_BYTES > 10 * 39_000 * 130
+def test_the_size_cap_is_far_above_a_real_grid(tmp_path):
+    """±40° at 1° with check points, 3 repeats: (81² + 80²) × 3 = 38 883 rows, each as long as the writer makes it
+    (full-precision floats and a sensor id: ~135 bytes; about 5 MB in all)."""
+    path = tmp_path / "qd.csv"
+    write_qd_csv(path, _synthetic())
+    row_bytes = max(len(line) + 1 for line in path.read_bytes().splitlines()[1:])
+    assert 100 < row_bytes < 200
+    assert qd_datafile.MAX_FILE_BYTES > 10 * (81**2 + 80**2) * 3 * row_bytes
 
 
 # --- readings to apply a calibration to ---------------------------------------------------------------------

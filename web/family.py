@@ -14,8 +14,7 @@ from bench.families import family as family_named
 def family_info(service) -> dict:
     """``family``, ``family_title``, ``plans`` (the campaign plans the bench runs) and ``has_frames`` (its sensor
     takes image frames: a latest frame and a spot map) of the service's bench; empty when it cannot say."""
-    engine = getattr(getattr(service, "session", None), "engine", None) or getattr(service, "engine", None)
-    family = getattr(engine, "family", None)
+    family = getattr(getattr(service, "engine", None), "family", None)  # the service's engine is its session's
     if family is None:
         return {}
     return {"family": family.name, "family_title": family.title, "plans": list(family.plans),

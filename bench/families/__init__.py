@@ -123,6 +123,17 @@ def family_of_sensor(kind: str) -> Family:
     raise KeyError(f"no sensor family reads a {kind!r} sensor")
 
 
+def journal_fit(journal: Callable[[str, str], Any], summary: str, rejected, warnings, unit: str) -> None:
+    """What the fits at a run's end found, as ``fit`` lines of `journal(kind, message)`: `summary`, the readings
+    the fit `rejected` (counted in `unit`s, the first ten described) and its `warnings`."""
+    journal("fit", summary)
+    if rejected:
+        journal("fit", f"{len(rejected)} {unit}(s) rejected: " + "; ".join(r.describe() for r in rejected[:10])
+                + (" …" if len(rejected) > 10 else ""))
+    for warning in warnings:
+        journal("fit", f"warning: {warning}")
+
+
 def table_mount(axis_order: str, geometry):
     """The table's kinematics as the plans set directions through it: seed 003's azimuth-on-zenith table (with
     its lever arm, :class:`calibration.stage_geometry.StageGeometry`) or an alt-az fork

@@ -33,7 +33,7 @@ from ..messages import (
     SetTemperature,
     WaitWarm,
 )
-from . import Family, register
+from . import Family, journal_fit, register
 
 #: Samples the module averages into one reading (1 ms each on the simulated module)
 AVERAGE = 16
@@ -134,15 +134,21 @@ def check_directions(n: int, field_deg: float) -> tuple[np.ndarray, np.ndarray]:
     return np.round((2 * u[:, 0] - 1) * span, 2), np.round((2 * u[:, 1] - 1) * span, 2)
 
 
-def qd_grid_plan(procedure, *, mount):
-    """Seed 002's calibration: the dark sweep with the source off (no light past a closed shutter, and an LED's
-    "shutter" is its own output), then the lamp, then the grid."""
-    yield from dark_sweep(procedure.dark)
+def _light_up(procedure):
+    """After the dark sweep: the die at the procedure's temperature (unless None), the lamp lit and warm, the
+    shutter open."""
     if procedure.temperature_c is not None:
         yield SetTemperature(float(procedure.temperature_c), procedure.dark.tolerance_c)
     yield LampOn()
     yield WaitWarm()
     yield OpenShutter()
+
+
+def qd_grid_plan(procedure, *, mount):
+    """Seed 002's calibration: the dark sweep with the source off (no light past a closed shutter, and an LED's
+    "shutter" is its own output), then the lamp, then the grid."""
+    yield from dark_sweep(procedure.dark)
+    yield from _light_up(procedure)
     for point in grid_points(procedure, mount):
         yield Measure(point)
     yield CloseShutter()
@@ -183,11 +189,7 @@ def qd_physical_plan(procedure, *, mount):
                        "targets")
     dark = yield from dark_sweep(procedure.dark)
     readings, stages = list(dark), [DARK] * len(dark)
-    if procedure.temperature_c is not None:
-        yield SetTemperature(float(procedure.temperature_c), procedure.dark.tolerance_c)
-    yield LampOn()
-    yield WaitWarm()
-    yield OpenShutter()
+    yield from _light_up(procedure)
     measured: set[str] = set()
     check_alpha, check_beta = check_directions(procedure.check_directions, procedure.field_deg)
     decision: dict = {}
@@ -233,9 +235,10 @@ def qd_dark_plan(sweep):
 def make_plan(campaign, *, timing=None, mount=None):
     if campaign.plan == "qd-dark":
         return qd_dark_plan(campaign.qd_dark)
+    mount = mount if mount is not None else StageGeometry(0.0)
     if campaign.plan == "qd-physical":
-        return qd_physical_plan(campaign.qd_physical, mount=mount if mount is not None else StageGeometry(0.0))
-    return qd_grid_plan(campaign.qd_grid, mount=mount if mount is not None else StageGeometry(0.0))
+        return qd_physical_plan(campaign.qd_physical, mount=mount)
+    return qd_grid_plan(campaign.qd_grid, mount=mount)
 
 
 # --- fits when a run ends -------------------------------------------------------------------------------------
@@ -276,14 +279,9 @@ def fit_run(catalogue, run_id: int, campaign, design, journal=None) -> list:
         catalogue.add_calibration(run_id, report.method, document, report.to_dict(), report is outcome.chosen)
     chosen = outcome.chosen
     held = chosen.heldout
-    journal("fit", f"fitted {len(outcome.directions)} directions; chosen {chosen.method}"
-                        + (f", held-out max {held.max_deg:.4f}°, RMS {held.rms_deg:.4f}°" if held else ""))
-    if outcome.rejected:
-        journal("fit", f"{len(outcome.rejected)} reading(s) rejected: "
-                            + "; ".join(r.describe() for r in outcome.rejected[:10])
-                            + (" …" if len(outcome.rejected) > 10 else ""))
-    for warning in outcome.warnings:
-        journal("fit", f"warning: {warning}")
+    journal_fit(journal, f"fitted {len(outcome.directions)} directions; chosen {chosen.method}"
+                + (f", held-out max {held.max_deg:.4f}°, RMS {held.rms_deg:.4f}°" if held else ""),
+                outcome.rejected, outcome.warnings, "reading")
     return outcome.reports
 
 

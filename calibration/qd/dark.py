@@ -194,7 +194,8 @@ def _aicc(rss: np.ndarray, n: int, p: int, scale: np.ndarray) -> float:
     return float(np.sum(n * np.log(np.maximum(rss, floor) / n) + 2 * p + 2.0 * p * (p + 1) / (n - p - 1)))
 
 
-def _linear_fit(t: np.ndarray, currents: np.ndarray, columns) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _linear_fit(t: np.ndarray, currents: np.ndarray, columns) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per quadrant: coefficients (4, p), covariance s² (XᵀX)⁻¹ (4, p, p), RSS (4,) and residual SD s (4,)."""
     x = np.stack(columns, axis=1)
     n, p = x.shape
     coef, *_ = np.linalg.lstsq(x, currents, rcond=None)
@@ -203,7 +204,7 @@ def _linear_fit(t: np.ndarray, currents: np.ndarray, columns) -> tuple[np.ndarra
     s2 = rss / (n - p) if n > p else np.full(4, np.nan)
     xtx_inv = np.linalg.pinv(x.T @ x)
     cov = s2[:, None, None] * xtx_inv[None]
-    return coef.T, cov, rss
+    return coef.T, cov, rss, np.sqrt(s2)
 
 
 def fit_dark_linear(temperature_c, currents_a) -> DarkModel:
@@ -228,10 +229,8 @@ def fit_dark_linear(temperature_c, currents_a) -> DarkModel:
     t, currents = _check(temperature_c, currents_a)
     if len(np.unique(np.round(t, 2))) < 2:
         raise InsufficientDataError("a linear dark-current fit needs dark readings at two temperatures at least")
-    coef, cov, rss = _linear_fit(t, currents, [np.ones_like(t), t])
-    n = len(t)
-    sd = np.sqrt(rss / (n - 2)) if n > 2 else np.full(4, np.nan)
-    return DarkModel("linear", coef, cov, sd, 0.0, _aicc(rss, n, 2, np.abs(currents).max(axis=0)))
+    coef, cov, rss, sd = _linear_fit(t, currents, [np.ones_like(t), t])
+    return DarkModel("linear", coef, cov, sd, 0.0, _aicc(rss, len(t), 2, np.abs(currents).max(axis=0)))
 
 
 def fit_dark_exponential(temperature_c, currents_a) -> DarkModel:
@@ -327,8 +326,7 @@ def fit_dark(temperature_c, currents_a, *, models=("linear", "exponential")) -> 
     n_temps = len(np.unique(np.round(t, 2)))
     t_range = (float(t.min()), float(t.max()))
     if n_temps < 2:
-        coef, cov, rss = _linear_fit(t, currents, [np.ones_like(t)])
-        sd = np.sqrt(rss / (n - 1)) if n > 1 else np.full(4, np.nan)
+        coef, cov, _, sd = _linear_fit(t, currents, [np.ones_like(t)])
         model = DarkModel("constant", coef, cov, sd)
         return DarkFit(model, {"constant": model}, n, t_range,
                        f"dark readings at one temperature only ({t[0]:.2f} °C): a constant dark current; its "
@@ -345,8 +343,13 @@ def fit_dark(temperature_c, currents_a, *, models=("linear", "exponential")) -> 
                 note = (f"exponential a + c·exp(b(t − {chosen.t_ref_c:.2f} °C)) chosen: its AICc is lower than the "
                         f"thesis' line's by {gain:.1f} (> {EXPONENTIAL_AICC_MARGIN:g})")
             else:
-                note += (f" kept: the exponential's AICc is lower by only {gain:.1f} (≤ {EXPONENTIAL_AICC_MARGIN:g})"
-                         if np.isfinite(gain) else " kept (AICc not comparable)")
+                if not np.isfinite(gain):
+                    note += " kept (AICc not comparable)"
+                elif gain > 0:
+                    note += (f" kept: the exponential's AICc is lower by only {gain:.1f} "
+                             f"(≤ {EXPONENTIAL_AICC_MARGIN:g})")
+                else:
+                    note += f" kept: the exponential's AICc is {-gain:.1f} higher"
         else:
             note += (f" (too few temperatures, {n_temps}, or readings, {n}, to test the exponential: it needs "
                      f"{EXPONENTIAL_MIN_TEMPERATURES} and {EXPONENTIAL_MIN_POINTS})")

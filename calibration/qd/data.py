@@ -101,16 +101,20 @@ class QdBenchData:
         return self.currents_a.shape[0]
 
     @property
+    def projection_deg(self) -> tuple[np.ndarray, np.ndarray]:
+        """(α, β) of each reading [°] (NaN on dark rows), computed together (seed 002 eq. 2.2)."""
+        a, b = projection_angles(np.where(self.dark, 0.0, self.zenith_deg), self.azimuth_deg)
+        return np.where(self.dark, np.nan, a), np.where(self.dark, np.nan, b)
+
+    @property
     def alpha_deg(self) -> np.ndarray:
-        """α of each reading [°] (NaN on dark rows)."""
-        a, _ = projection_angles(np.where(self.dark, 0.0, self.zenith_deg), self.azimuth_deg)
-        return np.where(self.dark, np.nan, a)
+        """α of each reading [°] (NaN on dark rows); both angles at once: :attr:`projection_deg`."""
+        return self.projection_deg[0]
 
     @property
     def beta_deg(self) -> np.ndarray:
-        """β of each reading [°] (NaN on dark rows)."""
-        _, b = projection_angles(np.where(self.dark, 0.0, self.zenith_deg), self.azimuth_deg)
-        return np.where(self.dark, np.nan, b)
+        """β of each reading [°] (NaN on dark rows); both angles at once: :attr:`projection_deg`."""
+        return self.projection_deg[1]
 
     def subset(self, mask) -> QdBenchData:
         """The rows where `mask` is True (or the rows at the given indices)."""

@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..data import chained_groups
 from ..errors import CalibrationError, InsufficientDataError
 from .angles import angle_between_projections_deg
 from .dark import NO_DARK, DarkFit, fit_dark, subtract_dark
@@ -162,10 +163,10 @@ def grid_lines(values, *, tolerance_deg: float = 0.1, min_members: int = 3) -> n
     digest §4 (a grid over ±40° on both axes).
     """
     v = np.asarray(values, float).ravel()
-    order = np.argsort(v)
     cluster = np.zeros(v.size, int)
     if v.size:
-        cluster[order] = np.concatenate([[0], np.cumsum(np.diff(v[order]) > tolerance_deg)])
+        order, group = chained_groups(v, tolerance_deg)
+        cluster[order] = group
     counts = np.bincount(cluster) if v.size else np.zeros(0, int)
     keep = np.flatnonzero(counts >= min_members)
     index = np.full(counts.size, -1)
@@ -460,9 +461,8 @@ def saturated_rows(currents_a, full_scale_a: float | None = None) -> np.ndarray:
     return out
 
 
-def _directions(data: QdBenchData, photo: np.ndarray, light: np.ndarray,
+def _directions(data: QdBenchData, alpha: np.ndarray, beta: np.ndarray, photo: np.ndarray, light: np.ndarray,
                 rejected: list) -> tuple[QdDirections, float | None]:
-    alpha, beta = data.alpha_deg, data.beta_deg
     idx = np.flatnonzero(light)
     group = np.full(idx.size, -1)
     for flag in (False, True):  # check points never share a direction with nodes
@@ -679,21 +679,22 @@ def calibrate_qd(data: QdBenchData, methods=None, *, design: QdDesign = DEFAULT_
     warnings: list = []
     dark = _fit_dark_robust(data, rejected)
     photo = subtract_dark(data.currents_a, data.temperature_c, dark)  # seed 002 §2.1
+    alpha, beta = data.projection_deg
     light = ~data.dark
     sums = photo.sum(axis=1)
     for i in np.flatnonzero(light & ~(sums > 0)):
-        rejected.append(RejectedRow(int(data.row_id[i]), float(data.alpha_deg[i]), float(data.beta_deg[i]),
+        rejected.append(RejectedRow(int(data.row_id[i]), float(alpha[i]), float(beta[i]),
                                     f"its photocurrents sum to {sums[i]:.3e} A after the dark current: no light"))
     light &= sums > 0
     clipped = saturated_rows(data.currents_a, design.full_scale_a) & light
     for i in np.flatnonzero(clipped):
-        rejected.append(RejectedRow(int(data.row_id[i]), float(data.alpha_deg[i]), float(data.beta_deg[i]),
+        rejected.append(RejectedRow(int(data.row_id[i]), float(alpha[i]), float(beta[i]),
                                     "a channel is saturated (at the ADC's full scale)"))
     light &= ~clipped
     if (light & ~data.check).sum() < 8:
         raise InsufficientDataError(f"a QD calibration needs light readings at 8 directions at least, the data have "
                                     f"{int((light & ~data.check).sum())} usable light rows")
-    points, scatter = _directions(data, photo, light, rejected)
+    points, scatter = _directions(data, alpha, beta, photo, light, rejected)
     points = _screen_directions(points, photo, design, data, rejected, warnings)
     if (~points.check).sum() < 8:
         raise InsufficientDataError(f"only {int((~points.check).sum())} node directions are left after the outliers")

@@ -5,7 +5,7 @@ The header defines ``sunbench_qd_angles(currents_a, temperature_c, &alpha_deg, &
 direction or 0 where :func:`calibration.qd.document.apply_document` gives NaN, and computing exactly what it
 computes (the same dark-current model, eq. 2.1, then eq. 2.2, the eq. 2.3 polynomial, or the physical
 model's Gauss–Newton inversion with the same start, steps and acceptance test). Doubles are printed with
-Python's shortest round-trip repr (:func:`calibration.export._num`), so the constants are the same binary
+Python's shortest round-trip repr (:func:`calibration.export.c_double`), so the constants are the same binary
 values. Names carry an ``sbqd_`` / ``SBQD_`` prefix so the QD header can sit beside the CMOS one.
 
 References
@@ -19,10 +19,10 @@ import re
 
 import numpy as np
 
-from ..errors import CalibrationError
-from ..export import _array, _comment_safe, _num
+from ..export import c_array, c_double, comment_safe
+from ..pinhole import detector_rotation
+from .dark import DARK_PARAMETERS
 from .document import physical_from_document, validate_document
-from .physical import _offset_rotation
 
 _PRELUDE = """\
 #include <math.h>
@@ -210,14 +210,13 @@ def _value(doc, name):
 
 def _dark_constants(dark: dict) -> list[str]:
     kind = dark["model"]
-    names = {"none": (), "constant": ("id0_a",), "linear": ("id0_a", "kd_a_per_c"),
-             "exponential": ("a_a", "c_a", "b_per_c")}[kind]
+    names = DARK_PARAMETERS[kind]
     lines = [f"/* dark current, seed 002 §2.1: {kind} model */"]
     if names:
-        rows = [_array(q[n]["value"] for n in names) for q in dark["quadrants"]]
+        rows = [c_array(q[n]["value"] for n in names) for q in dark["quadrants"]]
         lines.append(f"static const double SBQD_DARK[4][{len(names)}] = {{\n    " + ",\n    ".join(rows) + "};")
     if kind == "exponential":
-        lines.append(f"static const double SBQD_DARK_T_REF_C = {_num(dark['t_ref_c'])};")
+        lines.append(f"static const double SBQD_DARK_T_REF_C = {c_double(dark['t_ref_c'])};")
     return lines
 
 
@@ -239,11 +238,11 @@ def c_header(document: dict, *, provenance: dict | None = None) -> str:
     method, model = document["method"], document["model"]
     layout = np.asarray(model["layout"], float)
     constants = _dark_constants(document["dark"])
-    constants.append("static const double SBQD_LAYOUT[4][2] = {" + ", ".join(_array(r) for r in layout) + "};"
+    constants.append("static const double SBQD_LAYOUT[4][2] = {" + ", ".join(c_array(r) for r in layout) + "};"
                      "  /* (sign x, sign y) of quadrants 1-4 */")
     if method == "geometric":
-        constants += [f"static const double SBQD_LENGTH_M = {_num(model['length_m'])};  /* L of eq. 2.1 */"]
-        constants += [f"static const double SBQD_{n.upper()} = {_num(_value(document, n))};"
+        constants += [f"static const double SBQD_LENGTH_M = {c_double(model['length_m'])};  /* L of eq. 2.1 */"]
+        constants += [f"static const double SBQD_{n.upper()} = {c_double(_value(document, n))};"
                       for n in ("x0_m", "y0_m", "alpha0_deg", "beta0_deg", "phi0_deg", "d_m")]
         body = _GEOMETRIC
     elif method == "polynomial":
@@ -252,31 +251,29 @@ def c_header(document: dict, *, provenance: dict | None = None) -> str:
                       f"#define SBQD_MAX_POWER {max(max(t) for t in terms)}",
                       "static const int SBQD_TERMS[SBQD_N_TERMS][2] = {"
                       + ", ".join(f"{{{i}, {j}}}" for i, j in terms) + "};",
-                      f"static const double SBQD_CENTER[2] = {_array(model['center'])};",
-                      f"static const double SBQD_SCALE[2] = {_array(model['scale'])};",
-                      f"static const double SBQD_COEF_ALPHA[SBQD_N_TERMS] = {_array(_value(document, 'coef_alpha'))};",
-                      f"static const double SBQD_COEF_BETA[SBQD_N_TERMS] = {_array(_value(document, 'coef_beta'))};"]
+                      f"static const double SBQD_CENTER[2] = {c_array(model['center'])};",
+                      f"static const double SBQD_SCALE[2] = {c_array(model['scale'])};",
+                      f"static const double SBQD_COEF_ALPHA[SBQD_N_TERMS] = {c_array(_value(document, 'coef_alpha'))};",
+                      f"static const double SBQD_COEF_BETA[SBQD_N_TERMS] = {c_array(_value(document, 'coef_beta'))};"]
         body = _POLYNOMIAL
     else:
         p = physical_from_document(document)
-        constants += [f"static const double SBQD_{n.upper()} = {_num(getattr(p, n))};"
+        constants += [f"static const double SBQD_{n.upper()} = {c_double(getattr(p, n))};"
                       for n in ("x0_m", "y0_m", "alpha0_deg", "beta0_deg", "phi0_deg", "d_m", "gap_m", "radius_m")]
-        constants.append(f"static const double SBQD_GAINS[4] = {_array(p.gains)};")
+        constants.append(f"static const double SBQD_GAINS[4] = {c_array(p.gains)};")
         if p.offsets == "rotation":
-            m = _offset_rotation(p.alpha0_deg, p.beta0_deg)
+            m = detector_rotation(p.alpha0_deg, p.beta0_deg, 0.0)  # as calibration.qd.physical turns the die
             constants.append("/* die axes in the body frame: R_y(alpha0) R_x(-beta0) */")
-            rows = ",\n    ".join(_array(r) for r in m)
+            rows = ",\n    ".join(c_array(r) for r in m)
             constants.append("static const double SBQD_DIE[3][3] = {\n    " + rows + "};")
         body = _PHYSICAL.replace("OFFSETS", _ROTATION if p.offsets == "rotation" else _ADDITIVE)
-    if any("nan" in line or "inf" in line for line in constants):
-        raise CalibrationError("the calibration holds a non-finite value; no C header written")
     sensor_id = document.get("sensor_id")
     tag = re.sub(r"[^A-Za-z0-9]", "_", sensor_id or "SENSOR").upper()
     guard = f"SUNBENCH_QD_CALIBRATION_{tag}_H"
-    comment = "".join(f"\n   {key}: {_comment_safe(value)}" for key, value in (provenance or {}).items()
+    comment = "".join(f"\n   {key}: {comment_safe(value)}" for key, value in (provenance or {}).items()
                       if value is not None)
     lines = [
-        f"/* sunbench QD calibration: method {_comment_safe(method)}, sensor {_comment_safe(sensor_id or 'unknown')}.",
+        f"/* sunbench QD calibration: method {comment_safe(method)}, sensor {comment_safe(sensor_id or 'unknown')}.",
         "   Generated by `sunbench`; do not edit. Currents in amperes (quadrants 1-4), temperature in Celsius,",
         "   angles in degrees; body frame +z = boresight, tan(alpha) = s_x/s_z, tan(beta) = s_y/s_z." + comment + " */",
         f"#ifndef {guard}",

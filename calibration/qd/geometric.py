@@ -251,7 +251,14 @@ def covariance_summary(jac: np.ndarray, residual: np.ndarray, scale: np.ndarray)
     return cov, corr, dof
 
 
-def _free_and_fixed(fixed, names) -> dict:
+def fixed_parameters(fixed, names) -> dict:
+    """The parameters to hold fixed as ``{name: value or None}`` (None: at the start value), checked against
+    `names`; `fixed` is None, a sequence of names or such a dict.
+
+    References
+    ----------
+    seed 002, §3.1 (the fitted parameter vector f); digest §2.5 (any parameter fixable).
+    """
     if fixed is None:
         return {}
     if isinstance(fixed, dict):
@@ -303,7 +310,7 @@ def fit_geometric(xc_m, yc_m, alpha_deg, beta_deg, *, initial: GeometricParamete
         raise InsufficientDataError("xc, yc, alpha and beta must have the same length")
     if not np.all(np.isfinite(np.concatenate([x, y, a_true, b_true]))):
         raise InsufficientDataError("the geometric fit was given a non-finite spot or angle")
-    fixed = _free_and_fixed(fixed, GEOMETRIC_PARAMETERS)
+    fixed = fixed_parameters(fixed, GEOMETRIC_PARAMETERS)
     free = tuple(n for n in GEOMETRIC_PARAMETERS if n not in fixed)
     if 2 * x.size <= len(free):
         raise InsufficientDataError(f"the geometric fit of {len(free)} parameters needs more than {len(free) // 2} "

@@ -44,9 +44,10 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..errors import FitError, InsufficientDataError
+from ..pinhole import detector_rotation
 from .angles import vector_from_projection_angles
 from .design import DEFAULT_QD, QdDesign, quadrant_layout
-from .geometric import correlation_statements, covariance_summary, initial_geometric
+from .geometric import correlation_statements, covariance_summary, fixed_parameters, initial_geometric
 from .overlap import quadrant_areas, quadrant_areas_jacobian
 from .spot import quadrant_fractions
 
@@ -131,11 +132,9 @@ class PhysicalParameters:
 
 
 def _offset_rotation(alpha0_deg: float, beta0_deg: float) -> np.ndarray:
-    """M = R_y(α0) R_x(−β0): the die's axes in the body frame (columns)."""
-    a, b = np.radians(alpha0_deg), np.radians(-beta0_deg)
-    ry = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
-    rx = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(b), -np.sin(b)], [0.0, np.sin(b), np.cos(b)]])
-    return ry @ rx
+    """M = R_y(α0) R_x(−β0): the die's axes in the body frame (columns); the CMOS detector's tilt without its
+    in-plane turn (:func:`calibration.pinhole.detector_rotation`)."""
+    return detector_rotation(alpha0_deg, beta0_deg, 0.0)
 
 
 def die_tangents(alpha_deg, beta_deg, params: PhysicalParameters) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -161,6 +160,10 @@ def spot_centre(alpha_deg, beta_deg, params: PhysicalParameters) -> tuple[np.nda
     seed 002, eq. 2.2 inverted (digest §2.3); module docstring, step 2.
     """
     tx, ty, _ = die_tangents(alpha_deg, beta_deg, params)
+    return _centre_from_tangents(tx, ty, params)
+
+
+def _centre_from_tangents(tx, ty, params: PhysicalParameters) -> tuple[np.ndarray, np.ndarray]:
     rx, ry = params.x0_m - params.d_m * tx, params.y0_m - params.d_m * ty
     c, s = np.cos(np.radians(params.phi0_deg)), np.sin(np.radians(params.phi0_deg))
     return c * rx + s * ry, -s * rx + c * ry
@@ -208,8 +211,8 @@ def predict_currents(alpha_deg, beta_deg, params: PhysicalParameters, responsivi
     seed 002, eq. 2.1 (I^f_k); module docstring, step 3 (cos θ: the diaphragm passes the beam's
     cross-section, the spot keeps the hole's area).
     """
-    _, _, cos_inc = die_tangents(alpha_deg, beta_deg, params)
-    cx, cy = spot_centre(alpha_deg, beta_deg, params)
+    tx, ty, cos_inc = die_tangents(alpha_deg, beta_deg, params)
+    cx, cy = _centre_from_tangents(tx, ty, params)
     areas = quadrant_areas(cx, cy, params.radius_m, params.gap_m, params.signs)
     return responsivity_a_per_m2 * np.asarray(cos_inc)[..., None] * areas * params.gains
 
@@ -410,10 +413,7 @@ def fit_physical(alpha_deg, beta_deg, photocurrents_a, *, design: QdDesign = DEF
     start = initial if initial is not None else initial_physical(a, b, currents, design, offsets=offsets)
     start = replace(start, offsets=offsets)
     values = {n: getattr(start, n) for n in PHYSICAL_PARAMETERS}
-    fixed = ({n: None for n in fixed} if fixed is not None and not isinstance(fixed, dict) else dict(fixed or {}))
-    unknown = sorted(set(fixed) - set(PHYSICAL_PARAMETERS))
-    if unknown:
-        raise ValueError(f"unknown parameters to fix {unknown}; the parameters are {list(PHYSICAL_PARAMETERS)}")
+    fixed = fixed_parameters(fixed, PHYSICAL_PARAMETERS)
     for name, value in fixed.items():
         if value is not None:
             values[name] = float(value)
@@ -462,10 +462,7 @@ def fit_physical(alpha_deg, beta_deg, photocurrents_a, *, design: QdDesign = DEF
     sd = {n: float(np.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(free)}
     point = np.sqrt(np.mean(res.reshape(-1, 4) ** 2, axis=1))
     # the sums: K and the cos law
-    _, _, cos_inc = die_tangents(a, b, params)
-    cx, cy = spot_centre(a, b, params)
-    model_sum = (quadrant_areas(cx, cy, params.radius_m, params.gap_m, params.signs) * params.gains).sum(1) * cos_inc
-    ratio = currents.sum(axis=1) / model_sum
+    ratio = currents.sum(axis=1) / predict_currents(a, b, params, 1.0).sum(axis=1)
     k = float(np.median(ratio))
     cos_rms = float(np.sqrt(np.mean((ratio / k - 1.0) ** 2))) if k > 0 else float("nan")
     return PhysicalFit(params, free, sd, cov, corr, float(np.sqrt(np.mean(res**2))), point, dof, k, cos_rms,

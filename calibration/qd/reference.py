@@ -7,7 +7,6 @@
   model (§5.3). Only one set is printed though eq. 2.3 needs two, it is unlabelled (its magnitudes suggest β
   in degrees of x, y in metres), and its terms are MATLAB ``poly45``'s less p05 (digest §5.3): evaluated, it
   does not reproduce the geometric model, so it must not be used to check a polynomial fit.
-* :data:`THESIS_ACCURACY` — the headline maximum errors over the ±40° field.
 
 References
 ----------
@@ -32,13 +31,4 @@ THESIS_POLYNOMIAL = MappingProxyType({
     (3, 0): -7.778e08, (2, 1): 3.412e10, (1, 2): 6.618e08, (0, 3): 4.027e09,
     (4, 0): 4.024e12, (3, 1): 3.016e12, (2, 2): 1.92e13, (1, 3): -1.608e12, (0, 4): 1.869e13,
     (4, 1): -2.736e16, (3, 2): 2.181e14, (2, 3): -1.182e16, (1, 4): 1.147e14,
-})
-
-#: Seed 002 §5.2–5.4: maximum angle errors over the (−40°, +40°) field and the conclusion's claims.
-THESIS_ACCURACY = MappingProxyType({
-    "geometric_max_deg": 2.5,   # §5.2, largest at the edge of the field
-    "polynomial_max_deg": 0.7,  # §5.3, at the nodes; "between the nodes the error may exceed it"
-    "fov_half_deg": 40.0,       # §5.2–5.3, (−40, +40)
-    "fov_deg": 80.0,            # conclusion
-    "claimed_accuracy_deg": 1.0,  # conclusion: "less than 1 degree"
 })

@@ -27,17 +27,6 @@ class QdSignalError(BenchDataError):
     """Photocurrents whose sum is zero or negative: no light (or a dark current larger than the light)."""
 
 
-def photocurrent_sum(currents_a) -> np.ndarray:
-    """S = I_1 + I_2 + I_3 + I_4 per reading [A].
-
-    References
-    ----------
-    seed 002, eq. 2.1 (its denominator).
-    """
-    currents = _currents(currents_a)
-    return currents.sum(axis=-1)
-
-
 def _currents(currents_a) -> np.ndarray:
     currents = np.asarray(currents_a, dtype=float)
     if currents.shape[-1:] != (4,):

@@ -21,13 +21,13 @@ class BenchFaults:
     ----------
     world : SimWorld
         The bench's shared truth.
-    normal_temperature_c : float, optional
-        The sensor's temperature without a fault [°C]; default the world's now.
+    normal_temperature_c : float
+        The sensor's temperature without a fault [°C] (the bench's configured one).
     """
 
-    def __init__(self, world: SimWorld, *, normal_temperature_c: float | None = None):
+    def __init__(self, world: SimWorld, *, normal_temperature_c: float):
         self._world = world
-        self._normal_temperature_c = world.temperature_c if normal_temperature_c is None else normal_temperature_c
+        self._normal_temperature_c = normal_temperature_c
 
     # -- the enclosure ----------------------------------------------------------------------------------
     def open_enclosure(self) -> None:

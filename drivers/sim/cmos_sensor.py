@@ -35,8 +35,6 @@ class CmosSensorSimulator(FramedResponder, SimDevice):
         self.world = world
         self.renderer = SpotRenderer(world, detector)
         self.exposure_us = 4000
-        self.corrupt_crc = 0
-        self._held: list[tuple[float, bytes]] = []  # (ready time, reply) of captures in progress
         self.frames = 0
 
     # -- commands --------------------------------------------------------------------------------------

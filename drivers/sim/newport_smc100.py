@@ -67,6 +67,8 @@ import dataclasses
 import math
 import re
 
+from .. import newport_smc100 as controller
+from ..newport_smc100 import COMMAND_ERRORS, state_name
 from .device import LineDevice
 from .motion import AxisLimitError, AxisSpec, trapezoid
 
@@ -82,28 +84,12 @@ READY_FROM_DISABLE = 0x34
 DISABLE_FROM_READY = 0x3C
 DISABLE_FROM_MOVING = 0x3D
 
-#: Text of each TE letter as TB gives it (the manual's wording, as pymeasure's ``CommandError`` carries it).
+#: Text of each TE letter as TB gives it, in the manual's wording: the driver's table of meanings (pymeasure's)
+#: with the first word capitalised, C and S worded as the manual (and lantz's table) word them.
 ERROR_TEXTS: dict[str, str] = {
-    "@": "No error",
-    "A": "Unknown message code or floating point controller address",
-    "B": "Controller address not correct",
+    **{letter: meaning[0].upper() + meaning[1:] for letter, meaning in COMMAND_ERRORS.items()},
     "C": "Parameter missing or out of range",
-    "D": "Command not allowed",
-    "E": "Home sequence already started",
-    "F": "ESP stage name unknown",
-    "G": "Displacement out of limits",
-    "H": "Command not allowed in NOT REFERENCED state",
-    "I": "Command not allowed in CONFIGURATION state",
-    "J": "Command not allowed in DISABLE state",
-    "K": "Command not allowed in READY state",
-    "L": "Command not allowed in HOMING state",
-    "M": "Command not allowed in MOVING state",
-    "N": "Current position out of software limit",
     "S": "Communication Time Out",
-    "U": "Error during EEPROM access",
-    "V": "Error during command execution",
-    "W": "Command not allowed for PP version",
-    "X": "Command not allowed for CC version",
 }
 
 #: Commands a host may send without an address (or with address 0) to every controller of the chain.
@@ -112,21 +98,14 @@ BROADCAST = frozenset({"MM", "ST"})
 _LINE = re.compile(r"^(\d{1,2})?([A-Za-z]{2})(\??)(.*)$")
 
 
+#: TE letter of a command the present state does not allow, by the state's name (anchors-protocols §3.1)
+_REFUSALS = {controller.NOT_REFERENCED: "H", controller.CONFIGURATION: "I", controller.DISABLE: "J",
+             controller.READY: "K", controller.HOMING: "L", controller.MOVING: "M"}
+
+
 def _refusal_letter(state: int) -> str:
-    """TE letter for a command that the present state does not allow (anchors-protocols §3.1)."""
-    if 0x0A <= state <= 0x11:
-        return "H"
-    if state == 0x14:
-        return "I"
-    if 0x3C <= state <= 0x3F:
-        return "J"
-    if 0x32 <= state <= 0x38:
-        return "K"
-    if 0x1E <= state <= 0x1F:
-        return "L"
-    if state == MOVING:
-        return "M"
-    return "D"
+    """TE letter for a command that the present state does not allow (D in a state that has none)."""
+    return _REFUSALS.get(state_name(state), "D")
 
 
 class Smc100Simulator(LineDevice):
@@ -190,13 +169,13 @@ class Smc100Simulator(LineDevice):
         return (1 if hit == "low" else 0) | (2 if hit == "high" else 0)
 
     def _ready(self) -> bool:
-        return 0x32 <= self.state <= 0x38
+        return state_name(self.state) == controller.READY
 
     def _not_referenced(self) -> bool:
-        return 0x0A <= self.state <= 0x11
+        return state_name(self.state) == controller.NOT_REFERENCED
 
     def _disabled(self) -> bool:
-        return 0x3C <= self.state <= 0x3F
+        return state_name(self.state) == controller.DISABLE
 
     # -- lines ----------------------------------------------------------------------------------------------
     def _reply(self, command: str, value: str) -> bytes:
@@ -262,7 +241,7 @@ class Smc100Simulator(LineDevice):
         """The number a parameter is set to, or None after setting TE: the state's refusal letter when the
         parameter cannot be set now (only in CONFIGURATION, or not while HOMING or MOVING), C when the number
         is missing or outside the range."""
-        busy = 0x1E <= self.state <= 0x1F or self.state == MOVING
+        busy = state_name(self.state) in (controller.HOMING, controller.MOVING)
         if (self.state != CONFIGURATION) if configuration_only else busy:
             self.error = _refusal_letter(self.state)
             return None

@@ -58,6 +58,17 @@ from __future__ import annotations
 import math
 import re
 
+from ..oriel69907 import (  # the register bits (anchors-protocols §4.1), as the driver decodes them
+    ESR_COMMAND_ERROR,
+    ESR_EXECUTION_ERROR,
+    ESR_POWER_ON,
+    STB_COMM,
+    STB_FAULT,
+    STB_INTERLOCK,
+    STB_LAMP_ON,
+    STB_LIMIT,
+    STB_POWER_MODE,
+)
 from .device import LineDevice
 from .world import SimWorld
 
@@ -73,9 +84,6 @@ RATING_A = 50.0
 RATING_W = 500
 
 ARC_V0, ARC_V_PER_A = 15.0, 0.8  # arc voltage = ARC_V0 + ARC_V_PER_A * current [V]
-
-STB_LAMP_ON, STB_POWER_MODE, STB_FAULT, STB_COMM, STB_LIMIT, STB_INTERLOCK = 0x80, 0x20, 0x08, 0x04, 0x02, 0x01
-ESR_POWER_ON, ESR_COMMAND_ERROR, ESR_EXECUTION_ERROR = 0x80, 0x20, 0x10
 
 _FLOAT = re.compile(r"^\d+(\.\d*)?$")
 _INT = re.compile(r"^\d+$")

@@ -268,17 +268,6 @@ class QdTruth:
         """M with s_die = M · s_body (module docstring)."""
         return (_ry(self.alpha0_deg) @ _rx(-self.beta0_deg) @ _rz(self.phi0_deg)).T
 
-    def eq22_parameters(self) -> dict[str, float]:
-        """This build in seed 002 eq. 2.2's terms, the values a geometric fit should come close to: x0, y0 in
-        eq. 2.2's rotated (body-aligned) axes, d, α0, β0, φ0 — in mm and degrees. (Eq. 2.2 adds angular
-        offsets to projection angles, a first-order stand-in for the die's rotation, and eq. 2.1's ratio is
-        not the spot centre, so a fit recovers these only approximately.)"""
-        c, s = math.cos(math.radians(self.phi0_deg)), math.sin(math.radians(self.phi0_deg))
-        return {"x0_mm": (c * self.x0_um - s * self.y0_um) / 1000.0,
-                "y0_mm": (s * self.x0_um + c * self.y0_um) / 1000.0, "d_mm": self.height_um / 1000.0,
-                "alpha0_deg": self.alpha0_deg, "beta0_deg": self.beta0_deg, "phi0_deg": self.phi0_deg,
-                "L_mm": self.detector_side_mm}
-
     @property
     def stray_cutoff_deg(self) -> float:
         """Incidence beyond which the direct beam through the window reaches the bore's wall [°]."""
@@ -369,35 +358,6 @@ def qd_fleet_truth(base: QdTruth, serial: str) -> QdTruth:
 
 
 # -- optics -----------------------------------------------------------------------------------------------
-def _segment_integral(x, r):
-    """∫₀ˣ √(r² − t²) dt for |x| ≤ r."""
-    x = np.clip(x, -r, r)
-    return 0.5 * (x * np.sqrt(np.maximum(r * r - x * x, 0.0)) + r * r * np.arcsin(x / r))
-
-
-def disc_quarter_area(u, v, r):
-    """Area of the disc of radius `r` centred at the origin inside the quarter-plane {x > u, y > v} (exact).
-
-    ∫ over x > u of the chord length above y = v: where the chord lies wholly above (v ≤ −√(r² − x²)) it is
-    2√(r² − x²), where it crosses, √(r² − x²) − v; with the breakpoints at ±√(r² − v²) the integrals are
-    closed-form."""
-    u = np.clip(u, -r, r)
-    v = np.clip(v, -r, r)
-    xv = np.sqrt(np.maximum(r * r - v * v, 0.0))
-    lo = np.clip(u, -xv, xv)
-    crossing = _segment_integral(xv, r) - _segment_integral(lo, r)
-    above = crossing - v * (xv - lo)  # v ≥ 0: only the crossing chords count
-    whole = 2.0 * (_segment_integral(r, r) - _segment_integral(u, r))
-    below = whole - (crossing + v * (xv - lo))  # v < 0: full chords, less what y < v takes inside |x| < xv
-    return np.where(v >= 0.0, above, below)
-
-
-def disc_rect_area(x1, x2, y1, y2, r):
-    """Area of the disc of radius `r` at the origin inside the rectangle [x1, x2] × [y1, y2] (x1 ≤ x2, y1 ≤ y2)."""
-    return (disc_quarter_area(x1, y1, r) - disc_quarter_area(x2, y1, r) - disc_quarter_area(x1, y2, r)
-            + disc_quarter_area(x2, y2, r))
-
-
 def _arc_term(cx, cy, r, p1, p2):
     """½∫(x dy − y dx) along the circle of centre (cx, cy) and radius r from angle p1 to p2 (counter-clockwise)."""
     return 0.5 * (r * r * (p2 - p1) + cx * r * (np.sin(p2) - np.sin(p1)) - cy * r * (np.cos(p2) - np.cos(p1)))
@@ -411,8 +371,8 @@ def lens_rect_area(ax, ay, bx, by, r, x1, x2, y1, y2):
     boundary, made of arcs of the two circles and pieces of the rectangle's edges. Each circle is cut at every
     angle where it meets the other circle or an edge's line (10 angles, harmless extra cuts where there is no
     meeting), each edge at its meetings with the circles; a piece counts when its midpoint lies inside the
-    other constraints. Where the circles coincide (A = B) only A's arcs count. With A = B this is
-    :func:`disc_rect_area`."""
+    other constraints. Where the circles coincide (A = B) only A's arcs count (the tests check that case against
+    the disc's own closed form)."""
     ax, ay, bx, by, x1, x2, y1, y2 = np.broadcast_arrays(*(np.asarray(v, dtype=float)
                                                            for v in (ax, ay, bx, by, x1, x2, y1, y2)))
     ox, oy = 0.5 * (ax + bx), 0.5 * (ay + by)  # origin at the lens' middle: no cancellation of large products
@@ -473,30 +433,27 @@ class QdOptics:
     """Noise-free photocurrents of one build for a sun direction (module docstring)."""
 
     def __init__(self, truth: QdTruth):
-        self.truth = truth
+        # everything that depends on the build alone, once: a READ evaluates the rest
+        self.truth = t = truth
         self.rotation = truth.die_rotation()
-        self._disc_r, self._disc_psi = _sunflower(SUN_SAMPLES)
+        self._disc_r, psi = _sunflower(SUN_SAMPLES)
+        self._disc_cos, self._disc_sin = np.cos(psi)[:, None], np.sin(psi)[:, None]
         self._gauss_x, self._gauss_w = np.polynomial.legendre.leggauss(STRAY_NODES)
-        t = truth
         self.radius_um = t.aperture_diameter_um / 2.0
-        self.area_m2 = math.pi * (self.radius_um * 1e-6) ** 2
+        # heights of the diaphragm's bottom and top openings [µm]
+        self._lower_um = t.height_um - t.diaphragm_thickness_um / 2.0
+        self._upper_um = t.height_um + t.diaphragm_thickness_um / 2.0
         self._lo, self._hi = t.gap_um / 2.0, t.detector_side_mm * 500.0
         self._response_a_w = t.responsivity_a_w * np.asarray(t.quadrant_response, dtype=float)
         self._crosstalk = t.crosstalk_matrix()
+        self._dark_a = np.asarray(t.dark_na_at_25c) * 1e-9
+        self._dark_doubling_c = np.asarray(t.dark_doubling_c)
+        self._stray_q = 1.0 - (t.window_radius_mm / t.bore_radius_mm) ** 2  # q of the module docstring
 
     def die_direction(self, zenith_deg: float, azimuth_deg: float) -> np.ndarray:
         """Unit sun vector in the die frame."""
         z, a = math.radians(zenith_deg), math.radians(azimuth_deg)
         return self.rotation @ np.array([math.sin(z) * math.cos(a), math.sin(z) * math.sin(a), math.cos(z)])
-
-    def spot_centre_um(self, zenith_deg: float, azimuth_deg: float) -> tuple[float, float]:
-        """Centre of the spot of the Sun's centre on the die [µm] (die axes); NaN when the Sun is behind. With a
-        thick diaphragm, the lens' centre: the mid-plane's shadow."""
-        s = self.die_direction(zenith_deg, azimuth_deg)
-        if s[2] <= 0:
-            return math.nan, math.nan
-        h = self.truth.height_um
-        return self.truth.x0_um - h * s[0] / s[2], self.truth.y0_um - h * s[1] / s[2]
 
     def _sun_samples(self, s: np.ndarray, source_diameter_deg: float) -> np.ndarray:
         """Directions over the Sun's disc around `s` (unit, die frame), shape (n, 3)."""
@@ -504,14 +461,13 @@ class QdOptics:
         e1 /= np.linalg.norm(e1)
         e2 = np.cross(s, e1)
         theta = math.radians(source_diameter_deg / 2.0) * self._disc_r
-        off = np.cos(self._disc_psi)[:, None] * e1 + np.sin(self._disc_psi)[:, None] * e2
+        off = self._disc_cos * e1 + self._disc_sin * e2
         return np.cos(theta)[:, None] * s + np.sin(theta)[:, None] * off
 
     def _footprint_areas_um2(self, tx, ty) -> np.ndarray:
         """Area of the light through the diaphragm from directions of tangents (tx, ty) (die frame; any shape)
         on each quadrant, shape (4, *shape) [µm²]: the lens of the bottom and top openings' shadows."""
-        t = self.truth
-        lower, upper = t.height_um - t.diaphragm_thickness_um / 2.0, t.height_um + t.diaphragm_thickness_um / 2.0
+        t, lower, upper = self.truth, self._lower_um, self._upper_um
         tx, ty = np.asarray(tx, dtype=float)[None], np.asarray(ty, dtype=float)[None]
         extra = (1,) * (tx.ndim - 1)
         sx, sy = QUADRANT_SIGNS[:, 0].reshape(4, *extra), QUADRANT_SIGNS[:, 1].reshape(4, *extra)
@@ -548,7 +504,7 @@ class QdOptics:
         if h * tan_i <= rh - t.window_radius_mm:
             return np.zeros(4)  # below the cut-off: the beam through the window misses the wall
         psi_sun = math.atan2(s[1], s[0])
-        q = 1.0 - (t.window_radius_mm / rh) ** 2
+        q = self._stray_q
         m = h * tan_i / rh
         # the lit band: azimuths within `half` of the anti-Sun one; there, depths below the top u1 … u2 (the ray
         # traced back from the wall passes the window), cut by the bore's height
@@ -587,9 +543,7 @@ class QdOptics:
 
     def dark_current_a(self, die_temperature_c: float) -> np.ndarray:
         """Dark currents of Q1 … Q4 at the die's true temperature [A]."""
-        t = self.truth
-        return (np.asarray(t.dark_na_at_25c) * 1e-9
-                * np.exp2((die_temperature_c - DARK_REFERENCE_C) / np.asarray(t.dark_doubling_c)))
+        return self._dark_a * np.exp2((die_temperature_c - DARK_REFERENCE_C) / self._dark_doubling_c)
 
 
 # -- electronics ----------------------------------------------------------------------------------------------
@@ -617,24 +571,35 @@ class ChannelFaults:
         self.saturated.clear()
 
 
-def sample_counts(truth: QdTruth, currents_a: np.ndarray, n: int, rng: np.random.Generator,
-                  faults: ChannelFaults | None = None) -> np.ndarray:
-    """ADC codes of `n` samples of the four channels for the true input currents (photo + dark) [A], shape (n, 4)."""
-    current = np.array(currents_a, dtype=float)
-    if faults is not None:
-        for q in faults.dead:
-            current[q - 1] = 0.0
-    t_int = truth.integration_ms / 1000.0
-    sigma = np.sqrt(Q_E * np.maximum(current, 0.0) / t_int + (truth.amp_noise_pa * 1e-12) ** 2)
-    noisy = current + sigma * rng.standard_normal((n, 4))
-    code = np.asarray(truth.pedestal_counts + np.asarray(truth.pedestal_error_counts)) + noisy / truth.amperes_per_count
-    counts = np.clip(np.rint(code), 0, truth.full_scale_counts).astype(np.int64)
-    if faults is not None:
-        for q in faults.saturated:
-            counts[:, q - 1] = truth.full_scale_counts
-        for q, value in faults.stuck.items():
-            counts[:, q - 1] = int(np.clip(value, 0, truth.full_scale_counts))
-    return counts
+class QdChannels:
+    """The four channels' amplifiers and ADCs of one build (module docstring, "Electronics, dark current,
+    temperature"), their constants taken once."""
+
+    def __init__(self, truth: QdTruth):
+        self.full_scale_counts = truth.full_scale_counts
+        self._t_int_s = truth.integration_ms / 1000.0
+        self._amp_noise_a2 = (truth.amp_noise_pa * 1e-12) ** 2
+        self._zero_counts = np.asarray(truth.pedestal_counts + np.asarray(truth.pedestal_error_counts))
+        self._amperes_per_count = truth.amperes_per_count
+
+    def sample_counts(self, currents_a: np.ndarray, n: int, rng: np.random.Generator,
+                      faults: ChannelFaults | None = None) -> np.ndarray:
+        """ADC codes of `n` samples of the four channels for the true input currents (photo + dark) [A], shape
+        (n, 4)."""
+        current = np.array(currents_a, dtype=float)
+        if faults is not None:
+            for q in faults.dead:
+                current[q - 1] = 0.0
+        sigma = np.sqrt(Q_E * np.maximum(current, 0.0) / self._t_int_s + self._amp_noise_a2)
+        noisy = current + sigma * rng.standard_normal((n, 4))
+        full = self.full_scale_counts
+        counts = np.clip(np.rint(self._zero_counts + noisy / self._amperes_per_count), 0, full).astype(np.int64)
+        if faults is not None:
+            for q in faults.saturated:
+                counts[:, q - 1] = full
+            for q, value in faults.stuck.items():
+                counts[:, q - 1] = int(np.clip(value, 0, full))
+        return counts
 
 
 # -- thermal ---------------------------------------------------------------------------------------------------

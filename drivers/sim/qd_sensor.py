@@ -24,7 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from .. import qd_protocol as wire
 from ..framed_protocol import FramedResponder
 from .device import SimDevice
-from .qd_optics import ChannelFaults, QdOptics, QdTruth, TecModel, sample_counts
+from .qd_optics import ChannelFaults, QdChannels, QdOptics, QdTruth, TecModel
 from .world import SimWorld
 
 MODEL = "SB-QD-SUN"
@@ -105,9 +105,7 @@ class QdSensorSimulator(FramedResponder, SimDevice):
         super().__init__()
         self.world = world
         self.channel_faults = ChannelFaults()
-        self.corrupt_crc = 0
         self._noise = world.rng("qd-noise")
-        self._held: list[tuple[float, bytes]] = []  # (ready time, reply) of the READ in progress
         self.mount(truth.truth() if isinstance(truth, QdSensorConfig) else (truth or QdTruth()))
 
     # -- back door ---------------------------------------------------------------------------------------
@@ -116,6 +114,7 @@ class QdSensorSimulator(FramedResponder, SimDevice):
         with self.lock:
             self.truth = truth
             self.optics = QdOptics(truth)
+            self.channels = QdChannels(truth)
             self.tec = TecModel(truth, self.world.clock, lambda: self.world.temperature_c)
             self.samples = 0
             self._held.clear()
@@ -189,8 +188,8 @@ class QdSensorSimulator(FramedResponder, SimDevice):
         middle = start + 0.5 * n * t.integration_ms / 1000.0
         die_c = self.tec.true_c(middle)
         current = self.photocurrents_a() + self.optics.dark_current_a(die_c)
-        counts = sample_counts(t, current, n, self._noise, self.channel_faults)
-        full = t.full_scale_counts
+        counts = self.channels.sample_counts(current, n, self._noise, self.channel_faults)
+        full = self.channels.full_scale_counts
         flags = 0
         for k in range(4):
             flags |= int((counts[:, k] == full).any()) << k

@@ -13,12 +13,20 @@ import os
 import re
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
-from clitools import ALL_METHODS, assert_user_error_text, flat, invoke, method_rows, sunbench_process
+from clitools import (
+    ALL_METHODS,
+    ENV,
+    SUNBENCH,
+    assert_user_error_text,
+    flat,
+    invoke,
+    method_rows,
+    sunbench_process,
+)
 
 import bench.cli_runs as cli_runs
 from bench.campaign import load_campaign_file
@@ -28,9 +36,6 @@ from calibration.centroid import SpotFlag
 
 ROOT = Path(__file__).resolve().parents[2]
 SEED003 = ROOT / "examples" / "seed003.yaml"
-SUNBENCH = Path(sys.executable).with_name("sunbench")
-ENV = {**{k: v for k, v in os.environ.items() if k != "SUNBENCH_CATALOGUE"},
-       "COLUMNS": "160", "NO_COLOR": "1", "TERM": "dumb"}
 
 # seed 003 with fewer points (4 azimuths): 40 points, 73 frames with the auto-exposure probe
 SMALL = """\
@@ -46,11 +51,6 @@ seed003:
   tilt_stage: true
   tilt_repeats: 1
 """
-
-
-def sunbench(*args, cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess:
-    return subprocess.run([str(SUNBENCH), *map(str, args)], capture_output=True, text=True, env=ENV, cwd=cwd,
-                          timeout=timeout)
 
 
 def runs_in(db: Path) -> list[dict]:
@@ -72,7 +72,7 @@ def workdir(tmp_path_factory) -> Path:
 def seed003_run(workdir):
     """`sunbench run examples/seed003.yaml --time-scale 0`, once for the module: (process, catalogue, run id)."""
     db = workdir / "seed003.sqlite"
-    proc = sunbench("run", SEED003, "--time-scale", 0, "--catalogue", db, cwd=workdir)
+    proc = sunbench_process("run", SEED003, "--time-scale", 0, "--catalogue", db, cwd=workdir)
     assert proc.returncode == 0, proc.stderr
     return proc, db, int(proc.stdout.strip().splitlines()[-1])
 
@@ -93,11 +93,27 @@ def test_run_prints_the_preflight_and_the_run_id_on_its_last_line(seed003_run):
 
 def test_dry_run_runs_nothing(workdir):
     db = workdir / "dry.sqlite"
-    proc = sunbench("run", SEED003, "--dry-run", "--time-scale", 0, "--catalogue", db, cwd=workdir)
+    proc = sunbench_process("run", SEED003, "--dry-run", "--time-scale", 0, "--catalogue", db, cwd=workdir)
     assert proc.returncode == 0, proc.stderr
     assert flat(proc.stdout).startswith("preflight: 80 points, 313 frames")
     assert not re.search(r"^\d+$", proc.stdout, re.M) and "run 1" not in proc.stdout  # no run id, no summary
     assert not db.exists()  # a dry run writes nothing: it does not even open the catalogue
+
+
+@pytest.mark.parametrize("campaign, bench, preflight", [
+    ("seed003.yaml", None, "preflight: 80 points, 313 frames"),
+    ("physical.yaml", None, "preflight: at most 40 points, 161 frames"),
+    ("qd-grid.yaml", "bench-sim-qd.yaml", "preflight: 549 points, 1667 frames"),
+    ("qd-physical.yaml", "bench-sim-qd.yaml", "preflight: at most 309 points, 642 frames"),
+    ("qd-grid.yaml", "bench-sim-qd-lx200.yaml", "preflight: 549 points, 1667 frames"),
+])
+def test_every_example_campaign_passes_its_preflight(tmp_path, campaign, bench, preflight):
+    """The README's example commands: each campaign of examples/ on its bench file, dry run."""
+    examples = ROOT / "examples"
+    result = invoke("run", examples / campaign, "--dry-run", "--time-scale", 0, "--catalogue", tmp_path / "c.sqlite",
+                    *(("--bench", examples / bench) if bench else ()))
+    assert result.exit_code == 0, result.output
+    assert flat(result.stdout).startswith(preflight), result.stdout
 
 
 # a real bench (nothing listens there: connecting would fail, but nothing may even try while it is in use)
@@ -115,10 +131,10 @@ def test_a_dry_run_leaves_a_real_bench_alone_while_another_process_drives_it(wor
     bench.write_text(REAL_BENCH)
     db = workdir / "busy.sqlite"
     with Catalogue(db):  # what a server driving the bench holds: its devices are that process's
-        proc = sunbench("run", SEED003, "--dry-run", "--bench", bench, "--catalogue", db, cwd=workdir)
+        proc = sunbench_process("run", SEED003, "--dry-run", "--bench", bench, "--catalogue", db, cwd=workdir)
     assert_user_error_text(proc.stderr, proc.returncode, f"the bench is in use by pid {os.getpid()}",
                            "dry-run the campaign on its dashboard")
-    proc = sunbench("run", SEED003, "--yes", "--bench", bench, "--catalogue", db, cwd=workdir)
+    proc = sunbench_process("run", SEED003, "--yes", "--bench", bench, "--catalogue", db, cwd=workdir)
     assert proc.returncode == 2 and "--yes confirms sensor mounts only on a simulated bench" in flat(proc.stderr)
 
 
@@ -136,7 +152,7 @@ def test_a_bad_campaign_file_names_the_file_and_the_field(workdir, edit, fragmen
     path = workdir / f"bad-{next(iter(edit))}.yaml"
     path.write_text(yaml.safe_dump(document))
     db = workdir / "bad-campaign.sqlite"
-    proc = sunbench("run", path, "--time-scale", 0, "--catalogue", db, cwd=workdir)
+    proc = sunbench_process("run", path, "--time-scale", 0, "--catalogue", db, cwd=workdir)
     assert_user_error_text(proc.stderr, proc.returncode, str(path), *fragments)
     assert proc.stdout == ""
     assert not db.exists() or runs_in(db) == []
@@ -152,7 +168,7 @@ def test_a_bad_bench_file_names_the_file_and_the_field(workdir, text, fragments)
     path = workdir / "bad-bench.yaml"
     path.write_text(text)
     db = workdir / "bad-bench.sqlite"
-    proc = sunbench("run", SEED003, "--bench", path, "--catalogue", db, cwd=workdir)
+    proc = sunbench_process("run", SEED003, "--bench", path, "--catalogue", db, cwd=workdir)
     assert_user_error_text(proc.stderr, proc.returncode, str(path), *fragments)
     assert not db.exists() or runs_in(db) == []
 
@@ -164,7 +180,7 @@ def test_a_campaign_beyond_the_soft_limits_is_refused_listing_every_violation(wo
     bench = workdir / "limited.yaml"
     bench.write_text(LIMITED_BENCH)
     db = workdir / "limited.sqlite"
-    proc = sunbench("run", SEED003, "--bench", bench, "--time-scale", 0, "--catalogue", db, cwd=workdir)
+    proc = sunbench_process("run", SEED003, "--bench", bench, "--time-scale", 0, "--catalogue", db, cwd=workdir)
     message = assert_user_error_text(proc.stderr, proc.returncode, "preflight refused the campaign")
     # every grid point at 50° and 60° on the zenith stage, at each of the 8 azimuths, and nothing else
     expected = {(az, zen) for az in range(0, 360, 45) for zen in (50, 60)}
@@ -283,7 +299,7 @@ def test_a_fleet_campaign_runs_every_sensor_and_fleet_prints_a_row_each(workdir)
     campaign = workdir / "fleet.yaml"
     campaign.write_text(SMALL.format(name="fleet", sensors="[A, B, C]"))
     db = workdir / "fleet.sqlite"
-    proc = sunbench("run", campaign, "--time-scale", 0, "--catalogue", db, "--yes", cwd=workdir)
+    proc = sunbench_process("run", campaign, "--time-scale", 0, "--catalogue", db, "--yes", cwd=workdir)
     assert proc.returncode == 0, proc.stderr
     runs = runs_in(db)
     assert [(r["sensor_id"], r["status"], r["n_points_recorded"]) for r in runs] == \
@@ -335,7 +351,7 @@ def test_the_operator_confirms_each_next_sensor_at_the_prompt_and_resume_goes_on
     proc = sunbench_process("resume", runs[-1]["id"], "--time-scale", 0, "--catalogue", db, cwd=workdir)
     assert proc.returncode == 1 and "no answer: the sensor was not confirmed" in flat(proc.stderr)
     assert len(runs_in(db)) == 2
-    proc = sunbench("resume", runs[-1]["id"], "--time-scale", 0, "--catalogue", db, "--yes", cwd=workdir)
+    proc = sunbench_process("resume", runs[-1]["id"], "--time-scale", 0, "--catalogue", db, "--yes", cwd=workdir)
     assert proc.returncode == 0, proc.stderr
     assert [(r["sensor_id"], r["status"]) for r in runs_in(db)][-1] == ("C", "completed")
     with Catalogue(db, readonly=True) as cat:

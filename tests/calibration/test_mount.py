@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-from qd_simulation import grid
 
 from calibration.errors import CalibrationError
 from calibration.geometry import direction_vector
@@ -46,7 +45,8 @@ def test_fork_kinematics_is_the_digests_with_its_sign():
                                    StageGeometry(0.0), StageGeometry(0.16, 0.3, 0.0, 0.1, -0.05)],
                          ids=["fork", "fork-offsets", "seed003-ideal", "seed003-bench"])
 def test_round_trip_over_the_field(mount):
-    a, b = grid(40.0, 5.0)
+    plan = projection_grid(40.0, 5.0)  # the nodes and the check points between them
+    a, b = plan["alpha_deg"], plan["beta_deg"]
     first, second = mount_for_projection(a, b, mount)
     a2, b2 = mount_projection(first, second, mount)
     np.testing.assert_allclose(a2, a, atol=1e-9)

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from test_geometry import EQ8_TABLE  # seed 003 digest §2.6, [derived] from eq. 8 with d = 136.2 mm
 
 from calibration.design import DEFAULT_BENCH, BenchGeometry
 from calibration.geometry import zenith_azimuth_from_vector
@@ -12,12 +13,6 @@ from calibration.stage_geometry import (
     body_direction_deg,
     body_vectors_from_stage,
 )
-
-# seed 003 digest §2.6, [derived] from eq. 8 with d = 136.2 mm
-EQ8_TABLE = {
-    710.0: [0, 11.902, 23.711, 35.342, 46.730, 57.831, 68.620],
-    7100.0: [0, 10.191, 20.375, 30.548, 40.703, 50.836, 60.943],
-}
 
 
 @pytest.mark.parametrize("source_mm", sorted(EQ8_TABLE))

@@ -5,6 +5,7 @@ import zlib
 
 import numpy as np
 import pytest
+from framedtools import garbled
 
 from drivers import cmos_protocol as wire
 from drivers.cmos_sensor import CmosSunSensor, SensorError
@@ -109,12 +110,6 @@ def test_silence_and_a_cut_reply_are_timeouts():
 # -- retries (issue 10 item 10) ---------------------------------------------------------------------------------------
 def exposure_reply(seq, us=5):
     return frame(0x83, seq, struct.pack("<I", us))
-
-
-def garbled(raw: bytes) -> bytes:
-    bad = bytearray(raw)
-    bad[9] ^= 0xFF  # a payload byte: the frame arrives whole, its CRC does not match
-    return bytes(bad)
 
 
 def test_one_garbled_reply_then_a_good_one_is_a_counted_retry():

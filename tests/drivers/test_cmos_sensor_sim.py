@@ -4,6 +4,7 @@ import itertools
 
 import numpy as np
 import pytest
+from framedtools import inject
 
 from calibration.centroid import NoSpotError, SaturatedSpotError, find_spot
 from calibration.geometry import angular_error_deg
@@ -112,21 +113,12 @@ def test_capture_reply_waits_for_the_exposure_in_real_time(bench):
     assert world.clock.now() - t0 >= 0.108 and image.shape == (480, 640)
 
 
-def _inject(sim, fault, count):
-    if fault == "no_reply":
-        sim.faults.no_reply = True
-    elif fault == "corrupt_crc":
-        sim.corrupt_crc = count
-    else:
-        setattr(sim.faults, fault, count)
-
-
 @pytest.mark.parametrize("fault", ["garble", "truncate", "corrupt_crc"])
 def test_one_bad_reply_is_a_counted_retry(bench, fault):
     world, sim, sensor = bench
-    _inject(sim, fault, 1)
+    inject(sim, fault, 1)
     assert sensor.temperature_c() == pytest.approx(world.temperature_c)
-    _inject(sim, fault, 1)
+    inject(sim, fault, 1)
     image = sensor.capture()  # a capture is asked for again, a new exposure
     assert image.shape == (480, 640)
     assert sensor.retry_count == 2
@@ -136,7 +128,7 @@ def test_one_bad_reply_is_a_counted_retry(bench, fault):
                                           ("truncate", DeviceTimeout), ("corrupt_crc", ChecksumError)])
 def test_faults_give_typed_errors_then_a_clean_exchange(bench, fault, error):
     world, sim, sensor = bench
-    _inject(sim, fault, sensor.retries + 1)  # one more bad reply than the driver retries
+    inject(sim, fault, sensor.retries + 1)  # one more bad reply than the driver retries
     with pytest.raises(error, match=sensor.name) as info:
         sensor.temperature_c()
     assert info.value.attempts == sensor.retries + 1

@@ -211,9 +211,7 @@ def test_simulator_refusals_follow_the_state():
             assert sim.receive(b"1TE\r\n") == f"1TE{letter}\r\n".encode(), line
     wall[0] = 10.0  # the homing move is over
     assert sim.receive(b"1TS\r\n") == b"1TS000032\r\n"
-    for line, letter in [(b"1PAabc", "C"), (b"1OR", "K"), (b"1PA2", "@"), (b"1PA3", "M")]:
-        sim.receive(line + b"\r\n")
-        assert sim.receive(b"1TE\r\n") == f"1TE{letter}\r\n".encode(), line
+    _assert_letters(sim, [(b"1PAabc", "C"), (b"1OR", "K"), (b"1PA2", "@"), (b"1PA3", "M")])
 
 
 def test_expected_motion_reads_velocity_and_acceleration_and_acceleration_shapes_the_move(make_axis):
@@ -235,7 +233,17 @@ def _ask(sim, line: bytes) -> bytes:
 
 
 def _te(sim) -> str:
-    return _ask(sim, b"1TE").decode()[3:-2]
+    """The letter TE reports (the reply's framing checked)."""
+    reply = _ask(sim, b"1TE")
+    assert reply[:3] == b"1TE" and reply[-2:] == b"\r\n", reply
+    return reply[3:-2].decode()
+
+
+def _assert_letters(sim, script) -> None:
+    """Send each line of `script`; TE must then report its letter (@: no error)."""
+    for line, letter in script:
+        _ask(sim, line)
+        assert _te(sim) == letter, line
 
 
 def _ready_sim(time_scale=0.0, wall=None):
@@ -272,11 +280,9 @@ def test_configuration_state_holds_the_parameters_and_sa_takes_effect_on_leaving
     assert _ask(sim, b"1PW?") == b"1PW0\r\n"
     _ask(sim, b"1PW1")
     assert _ask(sim, b"1TS") == b"1TS000014\r\n" and _ask(sim, b"1PW?") == b"1PW1\r\n"
-    for line, letter in [(b"1OR", "I"), (b"1PA1", "I"), (b"1BA0.01", "@"), (b"1BH0.02", "D"), (b"1BA0", "@"),
-                         (b"1BH0.02", "@"), (b"1OT20", "@"), (b"1OT1", "C"), (b"1JR0.1", "@"), (b"1AC50", "@"),
-                         (b"1SA1", "C"), (b"1SA7", "@")]:
-        _ask(sim, line)
-        assert _te(sim) == letter, line
+    _assert_letters(sim, [(b"1OR", "I"), (b"1PA1", "I"), (b"1BA0.01", "@"), (b"1BH0.02", "D"), (b"1BA0", "@"),
+                          (b"1BH0.02", "@"), (b"1OT20", "@"), (b"1OT1", "C"), (b"1JR0.1", "@"), (b"1AC50", "@"),
+                          (b"1SA1", "C"), (b"1SA7", "@")])
     assert [_ask(sim, q) for q in (b"1BA?", b"1BH?", b"1OT?", b"1JR?", b"1AC?", b"1SA?")] == [
         b"1BA0.000000\r\n", b"1BH0.020000\r\n", b"1OT20.000000\r\n", b"1JR0.100000\r\n", b"1AC50.000000\r\n",
         b"1SA7\r\n"]
@@ -288,9 +294,7 @@ def test_configuration_state_holds_the_parameters_and_sa_takes_effect_on_leaving
 
 def test_configuration_only_parameters_are_refused_elsewhere():
     sim = _ready_sim()
-    for line in (b"1BA0.1", b"1BH0.1", b"1OT5", b"1SA3", b"1PW1"):
-        _ask(sim, line)
-        assert _te(sim) == "K", line
+    _assert_letters(sim, [(line, "K") for line in (b"1BA0.1", b"1BH0.1", b"1OT5", b"1SA3", b"1PW1")])
     assert _ask(sim, b"1PW0") == b"" and _te(sim) == "K"
 
 
@@ -299,10 +303,8 @@ def test_disable_state_mm0_and_mm1():
     assert _ask(sim, b"1MM?") == b"1MM1\r\n"
     _ask(sim, b"1MM0")
     assert _ask(sim, b"1TS") == b"1TS00003C\r\n" and _ask(sim, b"1MM?") == b"1MM0\r\n"
-    for line, letter in [(b"1PA5", "J"), (b"1OR", "J"), (b"1MM0", "@"), (b"1MM1", "@"), (b"1MM1", "@"),
-                         (b"1MM2", "C")]:
-        _ask(sim, line)
-        assert _te(sim) == letter, line
+    _assert_letters(sim, [(b"1PA5", "J"), (b"1OR", "J"), (b"1MM0", "@"), (b"1MM1", "@"), (b"1MM1", "@"),
+                          (b"1MM2", "C")])
     assert _ask(sim, b"1TS") == b"1TS000034\r\n"  # READY from DISABLE
     _ask(sim, b"1RS")
     _ask(sim, b"1MM0")
@@ -334,9 +336,7 @@ def test_parameters_cannot_change_while_moving():
     wall = [0.0]
     sim = _ready_sim(time_scale=1.0, wall=wall)
     _ask(sim, b"1PA50")
-    for line in (b"1VA2", b"1AC2", b"1JR1"):
-        _ask(sim, line)
-        assert _te(sim) == "M", line
+    _assert_letters(sim, [(line, "M") for line in (b"1VA2", b"1AC2", b"1JR1")])
     assert _ask(sim, b"1AC?") == b"1AC20.000000\r\n"  # queries are answered in every state
 
 

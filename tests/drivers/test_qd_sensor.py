@@ -7,6 +7,7 @@ import struct
 import zlib
 
 import pytest
+from framedtools import garbled
 
 from drivers import qd_protocol as wire
 from drivers.errors import ChecksumError, DeviceTimeout, LimitError, ProtocolError
@@ -181,12 +182,6 @@ def test_silence_and_a_cut_reply_are_timeouts():
 
 def status_reply(seq):
     return frame(0x84, seq, struct.pack("<BhhB", 1, 2000, 2001, 1))
-
-
-def garbled(raw: bytes) -> bytes:
-    bad = bytearray(raw)
-    bad[7] ^= 0xFF  # a payload byte: the frame arrives whole, its CRC does not match
-    return bytes(bad)
 
 
 def test_one_garbled_reply_then_a_good_one_is_a_counted_retry():

@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 import pytest
+from framedtools import inject
 
 from drivers import qd_protocol as wire
 from drivers.errors import ChecksumError, DeviceDisconnected, DeviceTimeout, ProtocolError
@@ -19,7 +20,6 @@ from drivers.sim.qd_optics import (
     RING_PAIRS,
     QdOptics,
     QdTruth,
-    disc_rect_area,
     lens_rect_area,
     qd_fleet_truth,
 )
@@ -63,6 +63,36 @@ def _direction(alpha_deg, beta_deg):
 def _lens_area(r, delta):
     """Area of two discs of radius r whose centres are delta apart."""
     return 2 * r * r * math.acos(delta / (2 * r)) - 0.5 * delta * math.sqrt(4 * r * r - delta * delta)
+
+
+def _segment_integral(x, r):
+    """∫₀ˣ √(r² − t²) dt for |x| ≤ r."""
+    x = np.clip(x, -r, r)
+    return 0.5 * (x * np.sqrt(np.maximum(r * r - x * x, 0.0)) + r * r * np.arcsin(x / r))
+
+
+def _disc_quarter_area(u, v, r):
+    """Area of the disc of radius `r` centred at the origin inside the quarter-plane {x > u, y > v} (exact).
+
+    ∫ over x > u of the chord length above y = v: where the chord lies wholly above (v ≤ −√(r² − x²)) it is
+    2√(r² − x²), where it crosses, √(r² − x²) − v; with the breakpoints at ±√(r² − v²) the integrals are
+    closed-form."""
+    u = np.clip(u, -r, r)
+    v = np.clip(v, -r, r)
+    xv = np.sqrt(np.maximum(r * r - v * v, 0.0))
+    lo = np.clip(u, -xv, xv)
+    crossing = _segment_integral(xv, r) - _segment_integral(lo, r)
+    above = crossing - v * (xv - lo)  # v ≥ 0: only the crossing chords count
+    whole = 2.0 * (_segment_integral(r, r) - _segment_integral(u, r))
+    below = whole - (crossing + v * (xv - lo))  # v < 0: full chords, less what y < v takes inside |x| < xv
+    return np.where(v >= 0.0, above, below)
+
+
+def _disc_rect_area(x1, x2, y1, y2, r):
+    """Area of the disc of radius `r` at the origin inside the rectangle [x1, x2] × [y1, y2] (x1 ≤ x2, y1 ≤ y2),
+    in closed form: the oracle of :func:`~drivers.sim.qd_optics.lens_rect_area` with coincident discs."""
+    return (_disc_quarter_area(x1, y1, r) - _disc_quarter_area(x2, y1, r) - _disc_quarter_area(x1, y2, r)
+            + _disc_quarter_area(x2, y2, r))
 
 
 IDEAL = dict(diaphragm_thickness_um=0.0, wall_reflectance=0.0, crosstalk=(0.0, 0.0, 0.0, 0.0))
@@ -123,8 +153,8 @@ def test_the_disc_rectangle_area_is_exact():
     pts = pts[(pts ** 2).sum(axis=1) < 1]
     for x1, x2, y1, y2 in [(-0.2, 0.6, 0.1, 2.0), (-2, 2, -2, 2), (0.05, 9, -9, -0.05), (-0.9, -0.4, -0.3, 0.3)]:
         inside = ((pts[:, 0] > x1) & (pts[:, 0] < x2) & (pts[:, 1] > y1) & (pts[:, 1] < y2)).mean() * math.pi
-        assert disc_rect_area(x1, x2, y1, y2, 1.0) == pytest.approx(inside, abs=0.006)
-    assert disc_rect_area(-5, 5, -5, 5, 3.0) == pytest.approx(9 * math.pi)
+        assert _disc_rect_area(x1, x2, y1, y2, 1.0) == pytest.approx(inside, abs=0.006)
+    assert _disc_rect_area(-5, 5, -5, 5, 3.0) == pytest.approx(9 * math.pi)
 
 
 @pytest.mark.parametrize("alpha, beta, grow", [(20, 0, (1, 4)), (-20, 0, (2, 3)), (0, 20, (1, 3)), (0, -20, (2, 4))])
@@ -213,7 +243,7 @@ def test_the_lens_rectangle_area_is_exact():
         c = rng.uniform(-1.5, 1.5, 2)
         (x1, x2), (y1, y2) = np.sort(rng.uniform(-2, 2, 2)), np.sort(rng.uniform(-2, 2, 2))
         assert lens_rect_area(*c, *c, 1.0, x1, x2, y1, y2) == pytest.approx(
-            disc_rect_area(x1 - c[0], x2 - c[0], y1 - c[1], y2 - c[1], 1.0), abs=1e-12)
+            _disc_rect_area(x1 - c[0], x2 - c[0], y1 - c[1], y2 - c[1], 1.0), abs=1e-12)
     for delta in (0.0, 0.3, 1.0, 1.9, 2.0, 2.5):  # a rectangle around everything: the two discs' lens
         lens = lens_rect_area(0.3, 0.1, 0.3 + 0.6 * delta, 0.1 + 0.8 * delta, 1.0, -5, 5, -5, 5)
         assert lens == pytest.approx(_lens_area(1.0, min(delta, 2.0)), abs=1e-12)
@@ -416,14 +446,12 @@ def test_a_read_waits_for_its_samples_in_real_time_and_the_module_is_busy_meanwh
     assert frame.code == wire.ERROR and frame.payload[0] == wire.NOT_READY
 
 
-def test_a_read_is_fast_and_quiet(qd):
+def test_a_read_is_quiet(qd):
+    # (how fast a READ is: tests/perf/bench_qd.py measures it, beside the ideal module's)
     bench, _, sensor = qd
     point(bench.world, 10, -5)
     sensor.read()
-    start = time.perf_counter()
     xs = [ratios(sensor.read().currents_a)[0] for _ in range(50)]
-    per_read_s = (time.perf_counter() - start) / 50
-    assert per_read_s < 0.005
     # near the centre d(ratio)/dα ≈ (4/π)(d/R) per radian = 0.013 per degree: the angle noise of one sample
     assert np.std(xs) / 0.0133 < 0.01
 
@@ -457,20 +485,11 @@ def test_channel_faults(qd):
     assert min(reading.currents_a) > 0.3e-6 and not reading.any_saturated
 
 
-def _inject(sim, fault, count):
-    if fault == "no_reply":
-        sim.faults.no_reply = True
-    elif fault == "corrupt_crc":
-        sim.corrupt_crc = count
-    else:
-        setattr(sim.faults, fault, count)
-
-
 @pytest.mark.parametrize("fault", ["garble", "truncate", "corrupt_crc"])
 def test_one_bad_reply_is_a_counted_retry(qd, fault):
     _, sim, sensor = qd
     sensor.identify()
-    _inject(sim, fault, 1)
+    inject(sim, fault, 1)
     assert sensor.read(3).n_samples == 3  # asked again: a fresh read
     assert sensor.retry_count == 1
 
@@ -480,7 +499,7 @@ def test_one_bad_reply_is_a_counted_retry(qd, fault):
 def test_faults_give_typed_errors_then_a_clean_exchange(qd, fault, error):
     bench, sim, sensor = qd
     sensor.port.timeout_s = 0.05
-    _inject(sim, fault, sensor.retries + 1)
+    inject(sim, fault, sensor.retries + 1)
     with pytest.raises(error, match=sensor.name) as info:
         sensor.temperature_status()
     assert info.value.attempts == sensor.retries + 1

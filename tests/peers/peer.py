@@ -9,6 +9,7 @@ import json
 import shutil
 import subprocess
 import textwrap
+from contextlib import contextmanager
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -61,3 +62,26 @@ def indi_tool(tool: str) -> str:
     if path is None:
         raise AssertionError(f"{tool} is not installed: run `{INSTALL}` (Debian's indi-bin)")
     return path
+
+
+@contextmanager
+def served(bench):
+    """`bench` (a :class:`~drivers.sim.bench.SimBench`) served on free TCP ports of 127.0.0.1 for the block; the
+    server is given (its ``urls``: role → ``socket://127.0.0.1:PORT``) and stopped at the end."""
+    server = bench.serve(host="127.0.0.1", base_port=0)
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+def host_port(url: str) -> tuple[str, int]:
+    """Host and port of a ``socket://HOST:PORT`` URL."""
+    host, port = url.removeprefix("socket://").rsplit(":", 1)
+    return host, int(port)
+
+
+def slow_calls(out: dict, limit_s: float, *, besides=()) -> dict[str, float]:
+    """The calls a peer script timed (its ``calls``, see ``timed``) that took longer than `limit_s` [s], but
+    those named in `besides`: name → longest wall time [s]."""
+    return {name: s for name, s in out["calls"].items() if name not in besides and s > limit_s}

@@ -24,7 +24,7 @@ a query may take at most that one sleep plus a little.
 from __future__ import annotations
 
 import pytest
-from peers.peer import run_peer
+from peers.peer import run_peer, served, slow_calls
 
 from drivers.sim.bench import SimBench, SimBenchConfig
 from drivers.sim.motion import trapezoid
@@ -151,11 +151,8 @@ print(json.dumps(out))
 def test_pylablib_over_socket(bench):
     sim = bench.devices["table-azimuth"]
     watch = RequestWatch(sim)
-    server = bench.serve(host="127.0.0.1", base_port=0)
-    try:
+    with served(bench) as server:
         out = run_peer("pylablib", PYLABLIB_SESSION, timeout_s=60.0, url=server.urls["table-azimuth"])
-    finally:
-        server.stop()
 
     assert (out["model"], out["serial"]) == ("K10CR1", 55000001)
     assert out["position0"] == 0.0 and "connected" in out["status0"] and "enabled" in out["status0"]
@@ -195,8 +192,7 @@ def test_pylablib_over_socket(bench):
     assert not watch.unanswered and not sim.unknown_ids, (watch.unanswered, sim.unknown_ids)
     assert "MOT_REQ_LIMSWITCHPARAMS" in watch.requests
     assert out["calls"]["connect"] < CONNECT_LIMIT_S
-    slow = {name: s for name, s in out["calls"].items()
-            if name not in ("connect", "stop", "home") and s > CALL_LIMIT_S}
+    slow = slow_calls(out, CALL_LIMIT_S, besides=("connect", "stop", "home"))
     assert not slow, f"calls that waited: {slow}"
     assert out["calls"]["stop"] < CALL_LIMIT_S
     assert out["calls"]["home"] < trapezoid(out["position3"], 5.0, 20.0) / TIME_SCALE + CALL_LIMIT_S
@@ -303,5 +299,5 @@ def test_qmi_over_a_pty(bench):
     # nothing waited on a timeout: every request answered at once, each query at most QMI's own one sleep
     assert not watch.unanswered and not sim.unknown_ids, (watch.unanswered, sim.unknown_ids)
     assert len(watch.requests) >= 15
-    slow = {name: s for name, s in out["calls"].items() if s > QMI_TIMEOUT_S + 0.1}
+    slow = slow_calls(out, QMI_TIMEOUT_S + 0.1)
     assert not slow, f"calls that waited more than QMI's fixed pre-read sleep: {slow}"

@@ -19,7 +19,7 @@ No call may wait on a timeout (lantz's is 10 s): every call is timed against a s
 from __future__ import annotations
 
 import pytest
-from peers.peer import run_peer
+from peers.peer import run_peer, slow_calls
 
 from drivers.sim.bench import SimBench, SimBenchConfig
 from drivers.sim.oriel69907 import amps_for_watts
@@ -118,5 +118,5 @@ def test_lantz_newport69907_over_a_pty():
     assert not lamp.on and seen["STOP"][0] is False
     assert out["unknown"] == "ESR20"  # command error
 
-    slow = {name: s for name, s in out["calls"].items() if s > CALL_LIMIT_S}
+    slow = slow_calls(out, CALL_LIMIT_S)
     assert not slow, f"calls that waited: {slow}"

@@ -22,7 +22,7 @@ timeout is 2 s; every call is timed against a small fraction of it).
 
 from __future__ import annotations
 
-from peers.peer import run_peer
+from peers.peer import host_port, run_peer, served, slow_calls
 
 from drivers.sim.bench import SimBench, SimBenchConfig
 
@@ -95,10 +95,11 @@ print(json.dumps(out))
 """
 
 
-def _serve(bench):
-    server = bench.serve(host="127.0.0.1", base_port=0)
-    host, port = server.urls["shutter"].removeprefix("socket://").rsplit(":", 1)
-    return server, host, int(port)
+def _run(bench, script: str) -> dict:
+    """Run an InstrumentKit `script` against the bench's SC10 over TCP."""
+    with served(bench) as server:
+        host, port = host_port(server.urls["shutter"])
+        return run_peer("instrumentkit", script, host=host, port=port, socket_timeout_s=SOCKET_TIMEOUT_S)
 
 
 def test_instrumentkit_sc10_as_the_manual_says():
@@ -113,11 +114,7 @@ def test_instrumentkit_sc10_as_the_manual_says():
         return reply
 
     sim.handle_line = watch
-    server, host, port = _serve(bench)
-    try:
-        out = run_peer("instrumentkit", MANUAL_SESSION, host=host, port=port, socket_timeout_s=SOCKET_TIMEOUT_S)
-    finally:
-        server.stop()
+    out = _run(bench, MANUAL_SESSION)
 
     assert out["name"] == "THORLABS SC10 (simulated) VERSION 1.0"
     assert out["read"] == {"enable": "False", "closed": "True", "interlock": "False", "repeat": "1", "trigger": "0",
@@ -136,7 +133,7 @@ def test_instrumentkit_sc10_as_the_manual_says():
     assert out["ens_value"] == "PromptError"
     assert states[-1] == ("ens=0", True) and lamp.shutter_open and sim.enabled
 
-    slow = {name: s for name, s in out["calls"].items() if s > CALL_LIMIT_S}
+    slow = slow_calls(out, CALL_LIMIT_S)
     assert not slow, f"calls that waited: {slow}"
 
 
@@ -144,16 +141,12 @@ def test_instrumentkit_sc10_with_its_own_readings():
     bench = SimBench(SimBenchConfig(source="xenon", time_scale=0.0))
     sim, lamp = bench.devices["shutter"], bench.world.lamp
     sim.accept_ens_value, sim.action_reply = True, "1"
-    server, host, port = _serve(bench)
-    try:
-        out = run_peer("instrumentkit", CLIENT_SESSION, host=host, port=port, socket_timeout_s=SOCKET_TIMEOUT_S)
-    finally:
-        server.stop()
+    out = _run(bench, CLIENT_SESSION)
 
     assert out["enabled"] == [True, False] and out["disabled"] == [False, True]
     assert [out["save"], out["restore"], out["save_mode"], out["default"]] == [1, 1, 1, 1]
     assert out["restored"] == "40.0 ms" and out["defaulted"] == "100.0 ms"
     assert lamp.shutter_open and sim.enabled  # the last `enable = True`
 
-    slow = {name: s for name, s in out["calls"].items() if s > CALL_LIMIT_S}
+    slow = slow_calls(out, CALL_LIMIT_S)
     assert not slow, f"calls that waited: {slow}"

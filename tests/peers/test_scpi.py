@@ -19,7 +19,7 @@ from __future__ import annotations
 import re
 
 import pytest
-from peers.peer import run_peer
+from peers.peer import host_port, run_peer, served, slow_calls
 
 from drivers.sim.bench import SimBench, SimBenchConfig
 from drivers.sim.lamp import LED
@@ -56,8 +56,15 @@ def bench():
     return SimBench(SimBenchConfig(source="led", time_scale=0.0))
 
 
-def _port(url: str) -> int:
-    return int(url.rsplit(":", 1)[1])
+def _session(bench, script: str):
+    """Run a client `script` against the bench's LED supply over TCP: (simulator, its QueryWatch, the script's
+    output)."""
+    sim = bench.devices["led"]
+    watch = QueryWatch(sim)
+    with served(bench) as server:
+        host, port = host_port(server.urls["led"])
+        out = run_peer("pyvisa", script, resource=f"TCPIP0::{host}::{port}::SOCKET", timeout_ms=VISA_TIMEOUT_MS)
+    return sim, watch, out
 
 
 PYVISA_SESSION = """
@@ -105,14 +112,7 @@ print(json.dumps(out))
 
 
 def test_pyvisa_py_over_a_socket(bench):
-    sim = bench.devices["led"]
-    watch = QueryWatch(sim)
-    server = bench.serve(host="127.0.0.1", base_port=0)
-    try:
-        resource = f"TCPIP0::127.0.0.1::{_port(server.urls['led'])}::SOCKET"
-        out = run_peer("pyvisa", PYVISA_SESSION, resource=resource, timeout_ms=VISA_TIMEOUT_MS)
-    finally:
-        server.stop()
+    sim, watch, out = _session(bench, PYVISA_SESSION)
 
     assert out["idn"] == "SUNBENCH,SCPI-SUPPLY-SIM,0,1.0"
     assert out["esr_power_on"] == "128" and out["version"] == "1999.0" and out["opt"] == "0"
@@ -133,7 +133,7 @@ def test_pyvisa_py_over_a_socket(bench):
 
     # nothing waited on a timeout
     assert watch.queries >= 15 and not watch.unanswered, watch.unanswered
-    slow = {name: s for name, s in out["calls"].items() if s > CALL_LIMIT_S}
+    slow = slow_calls(out, CALL_LIMIT_S)
     assert not slow, f"calls that waited: {slow}"
 
 
@@ -167,14 +167,7 @@ print(json.dumps(out))
 
 
 def test_pymeasure_keysight_e3631a(bench):
-    sim = bench.devices["led"]
-    watch = QueryWatch(sim)
-    server = bench.serve(host="127.0.0.1", base_port=0)
-    try:
-        resource = f"TCPIP0::127.0.0.1::{_port(server.urls['led'])}::SOCKET"
-        out = run_peer("pyvisa", PYMEASURE_SESSION, resource=resource, timeout_ms=VISA_TIMEOUT_MS)
-    finally:
-        server.stop()
+    sim, watch, out = _session(bench, PYMEASURE_SESSION)
 
     assert out["id"] == "SUNBENCH,SCPI-SUPPLY-SIM,0,1.0"
     assert out["ch1"] == [4.5, 0.35, True, pytest.approx(3.25), pytest.approx(0.35)]
@@ -188,5 +181,5 @@ def test_pymeasure_keysight_e3631a(bench):
     assert bench.world.irradiance() == pytest.approx(0.35 / LED.nominal_current_a, rel=0.01)
 
     assert watch.queries >= 10 and not watch.unanswered, watch.unanswered
-    slow = {name: s for name, s in out["calls"].items() if s > CALL_LIMIT_S}
+    slow = slow_calls(out, CALL_LIMIT_S)
     assert not slow, f"calls that waited: {slow}"

@@ -11,7 +11,7 @@ hangs it, which run_peer's limit turns into a failure)."""
 from __future__ import annotations
 
 import pytest
-from peers.peer import run_peer
+from peers.peer import host_port, run_peer, served, slow_calls
 
 from drivers.sim.bench import SimBench, SimBenchConfig
 from drivers.sim.motion import trapezoid
@@ -108,7 +108,7 @@ def test_pystages_over_a_pty(bench):
     offset = bench.config.azimuth_axis.home_switch_true_deg  # the table's zero offset
     assert sim.axis.true_deg() == pytest.approx(10.0 + offset, abs=PRINT_DEG)
     assert sim.error == "@"
-    slow = {name: s for name, s in out["calls"].items() if s > CALL_LIMIT_S}
+    slow = slow_calls(out, CALL_LIMIT_S)
     assert not slow, f"calls that waited: {slow}"
 
 
@@ -192,12 +192,9 @@ print(json.dumps(out))
 
 def test_qmi_over_tcp(bench):
     sim = bench.devices["table-azimuth"]
-    server = bench.serve(host="127.0.0.1", base_port=0)
-    try:
-        port = server.urls["table-azimuth"].rsplit(":", 1)[1]
-        out = run_peer("qmi", QMI_SESSION, timeout_s=60.0, transport=f"tcp:127.0.0.1:{port}")
-    finally:
-        server.stop()
+    with served(bench) as server:
+        host, port = host_port(server.urls["table-azimuth"])
+        out = run_peer("qmi", QMI_SESSION, timeout_s=60.0, transport=f"tcp:{host}:{port}")
 
     assert out["idn"][:2] == ["Newport", "SMC_CC"]
     assert out["state0"] == [[], "NOT REFERENCED from RESET"]
@@ -223,5 +220,5 @@ def test_qmi_over_tcp(bench):
     assert out["state_mm0"] == "DISABLE from READY." and out["qmi_reads_disabled"] is False
     assert out["state_mm1"] == "READY from DISABLE."
     assert out["final_error"] == ["@", "No error"]
-    slow = {name: s for name, s in out["calls"].items() if s > CALL_LIMIT_S}
+    slow = slow_calls(out, CALL_LIMIT_S)
     assert not slow, f"calls that waited (QMI's own timeout is {QMI_TIMEOUT_S} s): {slow}"

@@ -82,13 +82,15 @@ READS = [
 ]
 
 
-def _wait_for(predicate, what, timeout_s=15.0):
+def _wait_for(predicate, what, timeout_s=15.0, poll_s=0.02):
+    """`predicate()`'s first true value, asked every `poll_s` until `timeout_s` (else an AssertionError naming
+    `what`)."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         value = predicate()
         if value:
             return value
-        time.sleep(0.02)
+        time.sleep(poll_s)
     raise AssertionError(f"timed out waiting for {what}")
 
 
@@ -102,8 +104,8 @@ def _campaign_status(client, campaign_id):
 
 
 def _finished_run(client, campaign_id, timeout_s=15.0):
-    """The campaign's run once the campaign has ended: a run is "completed" before its fits are stored, so
-    the run's own status is not the signal that its results are there."""
+    """The campaign's run once the campaign has ended: its fits are stored by then (the engine stores them before
+    it marks the run completed), and the worker is done with the campaign."""
     def done():
         if _campaign_status(client, campaign_id) not in ("completed", "aborted", "failed"):
             return None

@@ -80,16 +80,21 @@ def page(browser, server, request):
     context = browser.new_context(base_url=base, viewport={"width": 1280, "height": 900})
     context.set_default_timeout(TIMEOUT_MS)
     page = context.new_page()
-    errors = []
-    page.on("pageerror", lambda exc: errors.append(f"uncaught: {exc}"))
-    # a 404 for a frame before the shutter has opened is the API's answer, not a page error
-    page.on("console", lambda m: m.type == "error" and "Failed to load resource" not in m.text
-            and errors.append(f"console: {m.text}"))
+    errors = watch_errors(page, [])
     page.shots = Shots(page, request.node.name)
     yield page
     page.shots("last")
     context.close()
     assert not errors, errors
+
+
+def watch_errors(page: Page, errors: list, where: str = "") -> list:
+    """Collect into `errors` (returned) every uncaught script error of `page` and every error it logs to the
+    console; a 404 for a frame before the shutter has opened is the API's answer, not a page error."""
+    page.on("pageerror", lambda exc: errors.append(f"uncaught{where}: {exc}"))
+    page.on("console", lambda m: m.type == "error" and "Failed to load resource" not in m.text
+            and errors.append(f"console{where}: {m.text}"))
+    return errors
 
 
 def _wait_idle(server, timeout_s=60.0):
@@ -822,8 +827,7 @@ def test_after_a_restart_the_run_page_links_the_last_run(browser, tmp_path):
         (run,) = _api(server, "/api/runs")["data"]
         context = browser.new_context(base_url=served.base, viewport={"width": 1280, "height": 900})
         page = context.new_page()
-        errors = []
-        page.on("pageerror", lambda exc: errors.append(str(exc)))
+        errors = watch_errors(page, [])
         shots = Shots(page, "restart")
         try:
             page.goto("/run")
@@ -857,10 +861,7 @@ def test_a_qd_campaign_from_the_launcher_to_its_results_view(browser, tmp_path):
         context = browser.new_context(base_url=served.base, viewport={"width": 1280, "height": 900})
         context.set_default_timeout(TIMEOUT_MS)
         page = context.new_page()
-        errors = []
-        page.on("pageerror", lambda exc: errors.append(f"uncaught: {exc}"))
-        page.on("console", lambda m: m.type == "error" and "Failed to load resource" not in m.text
-                and errors.append(f"console: {m.text}"))
+        errors = watch_errors(page, [])
         shots = Shots(page, "qd")
         try:
             page.goto("/")
@@ -882,7 +883,7 @@ def test_a_qd_campaign_from_the_launcher_to_its_results_view(browser, tmp_path):
             shots("launcher")
             # a second tab follows the run live, from its events (the token is the context's, in localStorage)
             live = context.new_page()
-            live.on("pageerror", lambda exc: errors.append(f"uncaught (live): {exc}"))
+            watch_errors(live, errors, " (live)")
             live.goto("/run")
             expect(live.locator("#stream-state")).to_have_text("connected")
             page.click("#start")

@@ -3,29 +3,14 @@ calibration rejected as outliers are named in its document (`rejected`, `row` = 
 draw such points apart, with why (tests/web/test_browser.py); the API says which they are, computed in
 bench/results.py."""
 
-import time
-
 import numpy as np
 from inprocess import AUTH
+from test_pages import _finished_run  # the small seed 003 campaign, run to its end: its run's id
 
 from bench.descriptor import ReadingRecord
 from bench.results import fit_residuals, point_means
 from bench.runner import EDGE_REASON, bench_data
 from calibration.centroid import SpotFlag
-
-SMALL = {"name": "small", "frames": "none",
-         "seed003": {"azimuth_step_deg": 90.0, "repeats": 1, "centre_repeats": 1, "tilt_stage": False}}
-
-
-def _finished_run(client, timeout_s=60.0) -> int:
-    assert client.post("/api/campaigns", json=SMALL, headers=AUTH).status_code == 202
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        runs = client.get("/api/runs", headers=AUTH).json()["data"]
-        if runs and runs[0]["status"] == "completed":
-            return runs[0]["id"]
-        time.sleep(0.05)
-    raise AssertionError("the campaign did not finish")
 
 
 def test_points_clipped_at_the_edge_are_marked_as_left_out_of_every_fit(client, service):

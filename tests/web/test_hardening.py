@@ -332,11 +332,14 @@ def test_the_status_and_every_page_say_the_bench_is_simulated_and_its_time_scale
         assert 'id="bench-banner"' in html and "Simulated bench" in html and "time scale 0" in html, path
 
 
-def test_the_banner_gives_the_pace_of_a_faster_clock(service, monkeypatch):
+def test_the_banner_gives_the_pace_of_a_faster_clock():
     from web.routes.pages import bench_banner
     assert "a bench hour takes 36 s of wall time" in bench_banner({"simulated": True, "time_scale": 100.0})
     assert "time scale 1:" in bench_banner({"simulated": True, "time_scale": 1.0})
     assert bench_banner({"simulated": False, "time_scale": None}) == ""
+    assert "every wait is skipped" in bench_banner({"simulated": True, "time_scale": 0.0})
+    unknown = bench_banner({"simulated": True, "time_scale": None})
+    assert "its time scale is unknown" in unknown and 'data-time-scale=""' in unknown
 
 
 def test_the_dry_run_gives_per_sensor_and_total_bench_and_wall_time(client, service, monkeypatch):

@@ -77,6 +77,44 @@ def test_no_served_html_or_js_refers_to_another_host(client):
     assert {f"/static/{n}" for n in shipped if not n.endswith(".html")} <= seen
 
 
+#: an id a script looks up: a selector in a string literal ("#run-title", "#metrics tbody"; a colour, "#d62728",
+#: is none) or a plot's element, named "…-plot" (Plotly.react("spot-plot" …), currentsPlot("currents-plot" …))
+_ID_SELECTOR = re.compile(r"""["'`]#([A-Za-z][\w-]*)""")
+_PLOT_ID = re.compile(r"""["']([A-Za-z][\w-]*-plot)["']""")
+_COLOUR = re.compile(r"[0-9a-fA-F]{3}(?:[0-9a-fA-F]{3})?")
+
+
+def script_ids(client, module: str) -> dict[str, set[str]]:
+    """Every element id the page script `module` (``/static/run.js``) and the modules it imports look up, with
+    the modules that do."""
+    ids, todo, seen = {}, [module], set()
+    while todo:
+        url = todo.pop()
+        if url in seen:
+            continue
+        seen.add(url)
+        js = client.get(url).text
+        for found in _ID_SELECTOR.findall(js) + _PLOT_ID.findall(js):
+            if not _COLOUR.fullmatch(found):
+                ids.setdefault(found, set()).add(url)
+        todo += _imports(js)
+    return ids
+
+
+def page_ids(html: str) -> set[str]:
+    return set(re.findall(r'\sid="([^"]+)"', html))
+
+
+def test_every_element_a_page_script_looks_up_is_on_its_page(client):
+    """A script that looks up an element its page lacks fails on the operator's screen, not here: each id a
+    page's modules name (common.js and, on /results, results-qd.js included) is an element of the page."""
+    for path, (module, _) in MODULES.items():
+        referenced = script_ids(client, f"/static/{module}")
+        assert referenced, path
+        missing = {i: where for i, where in referenced.items() if i not in page_ids(client.get(path).text)}
+        assert not missing, (path, missing)
+
+
 def test_plotly_is_served_locally_from_the_plotly_package(client):
     response = client.get("/static/plotly.min.js")
     assert response.status_code == 200

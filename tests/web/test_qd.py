@@ -54,7 +54,8 @@ def test_the_status_and_the_pages_say_the_bench_is_a_qd_bench_and_its_plans(qd_c
         body = re.search(r"<body[^>]*>", qd_client.get(path).text).group()
         assert 'data-family="qd"' in body and 'data-plans="qd-grid qd-physical qd-dark"' in body
         assert 'data-frames="false"' in body
-    assert qd_client.get("/api/frame.png", headers=AUTH).status_code == 404  # a photodiode takes no frame
+    no_frame = qd_client.get("/api/frame.png", headers=AUTH)  # a photodiode takes no frame, and says so
+    assert no_frame.status_code == 404 and "qd sensor on this bench takes no frames" in no_frame.text
 
 
 def test_the_launcher_form_of_a_qd_grid_is_a_valid_campaign_and_a_cmos_plan_is_refused(qd_client):
@@ -272,9 +273,17 @@ def test_the_point_events_of_a_qd_run_carry_currents_not_spots(qd_client, qd_ser
 
 
 def test_the_results_and_run_pages_ship_the_qd_view(qd_client):
+    from test_pages import page_ids, script_ids
     results = qd_client.get("/results").text
     for plot in ("qd-error-plot", "qd-dark-plot", "qd-currents-plot", "qd-sum-plot", "qd-metrics", "qd-rejected"):
         assert f'id="{plot}"' in results, plot
     assert 'import { showQdRun } from "./results-qd.js"' in qd_client.get("/static/results.js").text
     run = qd_client.get("/run").text
     assert 'id="currents-plot"' in run and 'id="n-currents"' in run
+    # and every element the QD view's script and the live page's look up is there, on a QD bench's pages
+    qd_view = {i for i, modules in script_ids(qd_client, "/static/results.js").items()
+               if "/static/results-qd.js" in modules}
+    assert {"qd-error-plot", "qd-dark-plot", "qd-currents-plot", "qd-sum-plot", "qd-metrics"} <= qd_view
+    assert qd_view <= page_ids(results), qd_view - page_ids(results)
+    live = set(script_ids(qd_client, "/static/run.js"))
+    assert {"currents-plot", "n-currents", "n-temperature"} <= live <= page_ids(run), live - page_ids(run)

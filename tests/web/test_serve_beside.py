@@ -10,6 +10,7 @@ import urllib.request
 
 from clitools import flat, sunbench_process
 from serving import serving
+from test_api import _wait_for
 
 from bench.catalogue import Catalogue
 
@@ -45,13 +46,7 @@ def get(served, path):
 
 
 def wait_for(predicate, what, timeout_s=60.0):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.1)
-    raise AssertionError(f"timed out waiting for {what}")
+    return _wait_for(predicate, what, timeout_s, poll_s=0.1)  # a server in another process: asked less often
 
 
 def campaign_status(served, campaign_id):

@@ -14,7 +14,7 @@ from bench.results import NoCalibration
 from calibration.errors import CalibrationFormatError
 
 from ..deps import READ, CatalogueDep, RunId
-from ..schemas import _Out
+from ..schemas import RejectedReadingPublic, _Out
 
 router = APIRouter(prefix="/api/runs", tags=["runs"], dependencies=READ,
                    responses={404: {"description": "No such run, or no such calibration of it"},
@@ -185,13 +185,10 @@ class QdMethodPublic(_Out):
     chi2_dof: float | None = Field(None, description="χ² per degree of freedom against the repeat scatter")
 
 
-class QdRejectedPublic(_Out):
-    row: int | None = Field(None, description="The reading's id")
+class QdRejectedPublic(RejectedReadingPublic):
+    """A reading the fit rejected (:class:`~web.schemas.RejectedReadingPublic`), with its point."""
     key: str | None = Field(None, description="Its point")
     stage: str | None = None
-    alpha_deg: float | None = Field(None, description="Its direction (null for a dark reading) [°]")
-    beta_deg: float | None = None
-    reason: str
 
 
 class QdMetricsPublic(_Out):

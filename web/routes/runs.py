@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Depends, status
 
-from bench.results import point_means, point_summaries
+from bench.results import run_points
 
 from ..deps import READ, AfterId, CampaignFilter, CatalogueDep, RunId, ServiceDep
 from ..schemas import CalibrationsPublic, Message, PointsPublic, RunLogPublic, RunPublic, RunsPublic, RunValuesPublic
@@ -61,8 +61,7 @@ def read_run(run_id: RunId, catalogue: CatalogueDep):
 def read_points(run_id: RunId, catalogue: CatalogueDep):
     """The run's points in recording order, each with the mean spot of its good readings (a cmos run's) and what
     its family shows of its readings live (`summary`: its spots, or its currents …)."""
-    summaries = point_summaries(catalogue, run_id)
-    points = [{**p, "summary": summaries.get(p["id"])} for p in point_means(catalogue, run_id)]
+    points = run_points(catalogue, run_id)
     return PointsPublic(run_id=run_id, data=points, count=len(points))
 
 

@@ -15,6 +15,15 @@ from ..schemas import SpotPublic, StatusPublic
 router = APIRouter(prefix="/api", tags=["status"], dependencies=READ)
 
 
+def _no_frame(service) -> HTTPException:
+    """Why there is no frame: none yet, or a sensor family that takes none (a photodiode)."""
+    family = service.engine.family
+    if not family.has_exposure:
+        return HTTPException(404, f"the {family.name} sensor on this bench takes no frames (see its currents in "
+                                  "/api/status)")
+    return HTTPException(404, "no frame yet: open the shutter (or start a run) first")
+
+
 def frame_png(frame: np.ndarray, full_scale_dn: float) -> bytes:
     """An 8-bit PNG of a raw frame, full scale (10-bit) mapped to 255."""
     scaled = np.clip(frame.astype(np.float32) * (255.0 / full_scale_dn), 0, 255).astype(np.uint8)
@@ -39,7 +48,7 @@ def read_frame_png(service: ServiceDep):
     """The latest sensor frame, scaled to 8 bits. 404 until the shutter has been open."""
     frame, _ = service.latest_frame()
     if frame is None:
-        raise HTTPException(404, "no frame yet: open the shutter (or start a run) first")
+        raise _no_frame(service)
     return Response(frame_png(frame, FULL_SCALE_DN), media_type="image/png",
                     headers={"Cache-Control": "no-store"})
 
@@ -50,5 +59,5 @@ def read_frame_spot(service: ServiceDep):
     """The centroid of the latest frame, or the centroid's error when it found no usable spot."""
     frame, spot = service.latest_frame()
     if frame is None or spot is None:
-        raise HTTPException(404, "no frame yet: open the shutter (or start a run) first")
+        raise _no_frame(service)
     return spot

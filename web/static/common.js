@@ -1,4 +1,5 @@
 // Shared by every page: the token (localStorage), fetch with Authorization: Bearer, small DOM helpers.
+/* global Plotly */
 const KEY = "sunbench.token";
 
 export const getToken = () => localStorage.getItem(KEY) || "";
@@ -151,9 +152,10 @@ export function initTokenForm(onChange) {
   if (!getToken()) showTokenForm(true);
 }
 
-// plans with a stopping rule (bench/plans.py physical_plan): a run's planned points are its cap, so its point
-// total, progress and ETA are upper bounds (preflight says so of a campaign: the dry run's upper_bound)
-const STOPPING_PLANS = new Set(["physical"]);
+// plans with a stopping rule (bench/plans.py physical_plan, bench/families/qd.py qd_physical_plan): a run's
+// planned points are its cap, so its point total, progress and ETA are upper bounds (preflight says so of a
+// campaign: the dry run's upper_bound)
+const STOPPING_PLANS = new Set(["physical", "qd-physical"]);
 export const stopsEarly = (planName) => STOPPING_PLANS.has(planName);
 
 export const query = (name) => new URLSearchParams(location.search).get(name);
@@ -270,3 +272,45 @@ export const unsafeText = (run) => {
   const at = reason.indexOf("ended unsafe");
   return at >= 0 ? reason.slice(at) : null;
 };
+
+// what the run and results pages say first, in red, of run `id` that ended unsafe (`text`: "ended unsafe: …")
+export const unsafeMessage = (id, text) => `RUN ${id ?? ""} ENDED UNSAFE: ${text.replace(/^ended unsafe:\s*/, "")}. `
+  + "See to the bench (shutter, lamp, table) before the next run.";
+
+// a crashed, aborted or failed run that no run resumed yet (`runs`: every run, GET /api/runs) can be resumed
+const RESUMABLE = new Set(["aborted", "failed", "crashed"]);
+export const resumable = (run, runs) => RESUMABLE.has(run.status) && !runs.some((r) => r.parent_run_id === run.id);
+
+// -- the results views (results.js, results-qd.js) -------------------------------------------------------------
+// why a run has no calibration, in words
+export const noCalibrationReason = (run) => `the run ${run.status === "completed" ? "has none stored"
+  : `was ${run.status} before its fit`}`;
+
+// the calibration <select>: one option per calibration record (`method`, `chosen`), `selected` the one shown
+export function methodOptions(select, records, selected) {
+  select.replaceChildren(...records.map((c) => el("option", { value: c.method, selected: c === selected },
+    c.method + (c.chosen ? " (chosen)" : ""))));
+}
+
+// a box of lines (a fit's warnings): its <ul> filled, the box hidden when there are none
+export function listBox(selector, lines) {
+  $(selector).hidden = !lines.length;
+  $(`${selector} ul`).replaceChildren(...lines.map((line) => el("li", {}, line)));
+}
+
+// -- quadrant currents (the qd family: the live run page and the results view) -----------------------------------
+export const QUADRANTS = ["Q1", "Q2", "Q3", "Q4"];
+export const QUADRANT_COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728"];
+
+// each quadrant's current at each point and their sum, on a log axis: `x` the points' numbers, `currents[k]`
+// quadrant k+1's currents [A], `sum` theirs, `text` each point's hover line; `extra` goes into the layout
+export function currentsPlot(id, title, x, currents, sum, text, extra = {}) {
+  const layout = plotLayout(title, "point", "current [A], dark current included", extra);
+  layout.yaxis = { ...layout.yaxis, type: "log", exponentformat: "SI" };
+  Plotly.react(id, [...QUADRANTS.map((name, k) => ({
+    type: "scatter", mode: "lines+markers", name, x, y: currents[k], text,
+    marker: { size: 3, color: QUADRANT_COLOURS[k] }, line: { width: 1, color: QUADRANT_COLOURS[k] },
+    hovertemplate: `${name} %{y:.4s}A<br>%{text}<extra></extra>`,
+  })), { type: "scatter", mode: "lines", name: "sum", x, y: sum, text, line: { width: 1.5, color: "#333", dash: "dot" },
+    hovertemplate: "sum %{y:.4s}A<br>%{text}<extra></extra>" }], layout, PLOT_CONFIG);
+}

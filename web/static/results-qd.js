@@ -5,10 +5,11 @@
 // temperature with the document's dark model; the four quadrant currents of every point and their sum over the
 // field. Everything is computed by the server (bench/qd_results.py); this module only draws it.
 /* global Plotly */
-import { $, amps, api, el, fmt, leftOutTrace, PLOT_CONFIG, plotLayout, report, say } from "./common.js";
+import {
+  $, amps, api, currentsPlot, el, fmt, leftOutTrace, listBox, methodOptions, noCalibrationReason, PLOT_CONFIG, plotLayout,
+  QUADRANT_COLOURS as COLOURS, QUADRANTS, report, say,
+} from "./common.js";
 
-const QUADRANTS = ["Q1", "Q2", "Q3", "Q4"];
-const COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728"];
 const deg = (v) => fmt(v, 4);
 
 // -- every method's figures -------------------------------------------------------------------------------------
@@ -24,15 +25,13 @@ function metricsTable(metrics) {
   $("#qd-metrics tbody").replaceChildren(...rows);
   $("#qd-metrics").hidden = !rows.length;
   $("#qd-metrics-none").hidden = rows.length > 0;
-  const warnings = metrics.warnings ?? [];
-  $("#qd-warnings").hidden = !warnings.length;
-  $("#qd-warnings ul").replaceChildren(...warnings.map((w) => el("li", {}, w)));
+  listBox("#qd-warnings", metrics.warnings ?? []);
   const rejected = metrics.rejected ?? [];
   $("#qd-rejected-part").hidden = !rows.length;  // no fit, nothing rejected by it
   $("#qd-rejected").hidden = !rejected.length;
   $("#qd-rejected-none").hidden = rejected.length > 0;
   $("#qd-rejected tbody").replaceChildren(...rejected.map((r) => el("tr", {},
-    el("td", {}, r.row === null || r.row === undefined ? "–" : String(r.row)), el("td", {}, r.key ?? "–"),
+    el("td", {}, String(r.row ?? "–")), el("td", {}, r.key ?? "–"),
     el("td", {}, fmt(r.alpha_deg, 2)), el("td", {}, fmt(r.beta_deg, 2)), el("td", {}, r.reason))));
 }
 
@@ -151,17 +150,9 @@ function darkPlot(dark) {
 function currentsPlots(currents) {
   const points = currents.data.filter((p) => p.currents_a);
   const text = points.map((p) => `${p.key} (${p.stage})${p.temperature_c === null ? "" : `, ${fmt(p.temperature_c, 2)} °C`}`);
-  const traces = QUADRANTS.map((name, k) => ({
-    type: "scatter", mode: "lines+markers", name, x: points.map((p) => p.index), y: points.map((p) => p.currents_a[k]),
-    text, marker: { size: 3, color: COLOURS[k] }, line: { width: 1, color: COLOURS[k] },
-    hovertemplate: `${name} %{y:.4s}A<br>%{text}<extra></extra>`,
-  }));
-  traces.push({ type: "scatter", mode: "lines", name: "sum", x: points.map((p) => p.index), y: points.map((p) => p.sum_a),
-    text, line: { width: 1.5, color: "#333", dash: "dot" }, hovertemplate: "sum %{y:.4s}A<br>%{text}<extra></extra>" });
-  const layout = plotLayout(`quadrant currents of the ${points.length} points in recording order (dark sweep first)`,
-    "point", "current [A], dark current included");
-  layout.yaxis = { ...layout.yaxis, type: "log", exponentformat: "SI" };
-  Plotly.react("qd-currents-plot", traces, layout, PLOT_CONFIG);
+  currentsPlot("qd-currents-plot", `quadrant currents of the ${points.length} points in recording order (dark sweep `
+    + "first)", points.map((p) => p.index), QUADRANTS.map((_, k) => points.map((p) => p.currents_a[k])),
+  points.map((p) => p.sum_a), text);
 
   const lit = points.filter((p) => p.alpha_deg !== null);
   $("#qd-sum-section").hidden = !lit.length;  // a dark sweep lights nothing
@@ -209,12 +200,11 @@ export async function showQdRun(run, { downloads }) {
   currentsPlots(currents);
   const chosen = metrics.data.find((m) => m.chosen) ?? metrics.data[0];
   const select = $("#method");
-  select.replaceChildren(...metrics.data.map((m) => el("option", { value: m.method, selected: m === chosen },
-    m.method + (m.chosen ? " (chosen)" : ""))));
+  methodOptions(select, metrics.data, chosen);
   select.onchange = () => showMethod(run, select.value, metrics, downloads).catch(report);
   if (!metrics.data.length) {
     const why = run.plan_name === "qd-dark" ? "a dark sweep calibrates no direction (a grid run's fit uses it)"
-      : `the run ${run.status === "completed" ? "has none stored" : `was ${run.status} before its fit`}`;
+      : noCalibrationReason(run);
     $("#qd-metrics-none").textContent = `No calibration: ${why}.`;
     say(`no calibration: ${why}`, run.plan_name !== "qd-dark");
   }

@@ -7,8 +7,8 @@
 // quality and the uncertainty map from the calibration documents, as GET /api/runs/{id}/calibrations serves them.
 /* global Plotly */
 import {
-  $, api, download, el, fmt, initTokenForm, leftOutTrace, matrixLayout, PLOT_CONFIG, plotLayout, query, report, say,
-  splitExcluded, stopsEarly, unsafeText,
+  $, api, download, el, fmt, initTokenForm, leftOutTrace, listBox, matrixLayout, methodOptions, noCalibrationReason,
+  PLOT_CONFIG, plotLayout, query, report, resumable, say, splitExcluded, stopsEarly, unsafeMessage, unsafeText,
 } from "./common.js";
 import { showQdRun } from "./results-qd.js";
 
@@ -220,8 +220,7 @@ function qualitySection(record) {
   if (!quality && !rejected) return;
   $("#quality-heading").textContent = `Quality of the ${record.method} calibration`;
   const warnings = quality?.warnings ?? [];
-  $("#quality-warnings").hidden = !warnings.length;
-  $("#quality-warnings ul").replaceChildren(...warnings.map((w) => el("li", {}, w)));
+  listBox("#quality-warnings", warnings);
   $("#quality-ok").hidden = !quality || warnings.length > 0;
   const figures = quality ? [
     ["χ²/dof (residuals against the repeat scatter; 1 when the model explains the data)", fmt(quality.chi2_dof, 2)],
@@ -235,7 +234,7 @@ function qualitySection(record) {
   $("#rejected-none").hidden = rows.length > 0;
   $("#rejected").hidden = !rows.length;
   $("#rejected tbody").replaceChildren(...rows.map((r) => el("tr", {},
-    el("td", {}, r.row === null || r.row === undefined ? "–" : String(r.row)), el("td", {}, fmt(r.zenith_deg, 2)),
+    el("td", {}, String(r.row ?? "–")), el("td", {}, fmt(r.zenith_deg, 2)),
     el("td", {}, fmt(r.azimuth_deg, 2)), el("td", {}, fmt(r.x_px, 2)), el("td", {}, fmt(r.y_px, 2)),
     el("td", {}, fmt(r.offset_px, 2)), el("td", {}, r.reason))));
 }
@@ -337,16 +336,12 @@ function provenanceSection(run) {
 function unsafeBox(run) {
   const text = unsafeText(run);
   $("#unsafe-box").hidden = !text;
-  $("#unsafe-box").textContent = text ? `RUN ${run.id} ENDED UNSAFE: ${text.replace(/^ended unsafe:\s*/, "")}. See to the `
-    + "bench (shutter, lamp, table) before the next run." : "";
+  $("#unsafe-box").textContent = text ? unsafeMessage(run.id, text) : "";
 }
 
 // a crashed, aborted or failed run nothing resumed yet: Resume run here, then follow it on /run?run=N
-const RESUMABLE = new Set(["aborted", "failed", "crashed"]);
-
 function resumeBox(run, runs) {
-  const child = runs.find((r) => r.parent_run_id === run.id);
-  const offer = RESUMABLE.has(run.status) && !child;
+  const offer = resumable(run, runs);
   $("#resume-box").hidden = !offer;
   if (!offer) return;
   $("#resume-text").textContent = `This run ${run.status}${run.exit_reason ? ` (${run.exit_reason})` : ""} after `
@@ -411,12 +406,12 @@ async function showRun(runId) {
   const usable = calibrations.data.filter((c) => !c.metrics?.error);
   const chosen = usable.find((c) => c.chosen) || usable[0];
   const select = $("#method");
-  select.replaceChildren(...usable.map((c) => el("option", { value: c.method, selected: c === chosen }, c.method + (c.chosen ? " (chosen)" : ""))));
+  methodOptions(select, usable, chosen);
   select.onchange = () => showMethod(runId, points.data, select.value, status?.sensor, calibrations.data);
   if (calibrations.data.length) metricsTable(calibrations.data);
   if (!usable.length) {
     say(calibrations.data.length ? "every fit of this run failed: see the table"
-      : `no calibration: the run ${run.status === "completed" ? "has none stored" : `was ${run.status} before its fit`}`, true);
+      : `no calibration: ${noCalibrationReason(run)}`, true);
   }
   await showMethod(runId, points.data, chosen?.method, status?.sensor, calibrations.data);
 }

@@ -6,8 +6,8 @@
 // the spot map). The page starts with its bench's kind (<body data-frames>) and follows the events.
 /* global Plotly */
 import {
-  $, amps, api, drawLatestFrame, duration, el, fmt, getToken, initTokenForm, LEFT_OUT_MARKER, matrixLayout, PLOT_CONFIG,
-  plotLayout, query, report, say, stopsEarly, unsafeText,
+  $, amps, api, currentsPlot, drawLatestFrame, duration, el, fmt, getToken, initTokenForm, LEFT_OUT_MARKER, matrixLayout,
+  PLOT_CONFIG, QUADRANTS, query, report, resumable, say, stopsEarly, unsafeMessage, unsafeText,
 } from "./common.js";
 
 const EDGE = "clipped at the detector's edge: left out of the fit";
@@ -25,7 +25,6 @@ let engineState = null;
 
 // -- what a reading is: "spots" (a frame's) or "currents" (a photodiode's) ----------------------------------------
 let reading = document.body.dataset.frames === "false" ? "currents" : "spots";
-const QUADRANTS = ["Q1", "Q2", "Q3", "Q4"];
 const currents = { index: [], q: [[], [], [], []], sum: [], text: [] };
 
 function showReading(kind) {
@@ -48,16 +47,8 @@ const currentsText = (values) => (Array.isArray(values)
   : "no reading");
 
 function drawCurrents() {
-  const layout = plotLayout(runId ? `quadrant currents of run ${runId}` : "quadrant currents", "point",
-    "current [A], dark current included");
-  layout.yaxis = { ...layout.yaxis, type: "log", exponentformat: "SI" };
-  layout.datarevision = `${runId}:${currents.index.length}`;
-  Plotly.react("currents-plot", [...QUADRANTS.map((name, k) => ({
-    type: "scatter", mode: "lines+markers", name, x: currents.index, y: currents.q[k], text: currents.text,
-    marker: { size: 3 }, line: { width: 1 }, hovertemplate: `${name} %{y:.4s}A<br>%{text}<extra></extra>`,
-  })), { type: "scatter", mode: "lines", name: "sum", x: currents.index, y: currents.sum, text: currents.text,
-    line: { width: 1.5, color: "#333", dash: "dot" }, hovertemplate: "sum %{y:.4s}A<br>%{text}<extra></extra>" }],
-  layout, PLOT_CONFIG);
+  currentsPlot("currents-plot", runId ? `quadrant currents of run ${runId}` : "quadrant currents", currents.index,
+    currents.q, currents.sum, currents.text, { datarevision: `${runId}:${currents.index.length}` });
 }
 
 function draw() {
@@ -136,8 +127,7 @@ function followState(state) {
 function showUnsafe(id, text) {
   const box = $("#unsafe-box");
   box.hidden = !text;
-  box.textContent = text ? `RUN ${id ?? ""} ENDED UNSAFE: ${text.replace(/^ended unsafe:\s*/, "")}. See to the bench `
-    + "(shutter, lamp, table) before the next run." : "";
+  box.textContent = text ? unsafeMessage(id, text) : "";
 }
 
 // the run's record says its plan (and whether it has ended, and how); the events do not
@@ -413,7 +403,6 @@ async function confirmMount() {
 }
 
 // -- a run that ended without completing (?run=N, else the newest): offered for resumption -----------------
-const RESUMABLE = new Set(["aborted", "failed", "crashed"]);
 const runParam = /^\d+$/.test(query("run") ?? "") ? Number(query("run")) : null;
 
 async function offerResume(state) {
@@ -422,7 +411,7 @@ async function offerResume(state) {
   try { runs = (await api("/api/runs")).data; } catch (err) { return; } // the status read says why already
   const id = runParam ?? runs.at(-1)?.id;
   const run = runs.find((r) => r.id === id);
-  const offer = Boolean(run) && RESUMABLE.has(run.status) && !runs.some((r) => r.parent_run_id === id);
+  const offer = Boolean(run) && resumable(run, runs);
   $("#resume-box").hidden = !offer || Boolean(awaitedMount);
   if (!offer) return;
   $("#resume-text").textContent = `Run ${id} (sensor ${run.sensor_id}) ${run.status}`

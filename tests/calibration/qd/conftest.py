@@ -2,14 +2,9 @@
 
 import numpy as np
 import pytest
-from qd_simulation import Sensor, brute_force_currents, grid, measure
+from qd_simulation import GLINT_ROW, SENSOR, brute_force_currents, grid, measure
 
 from calibration.qd.data import QdBenchData
-
-#: The simulated physical sensor of the tests (the simulator's kind of build errors).
-SENSOR = Sensor()
-#: Row of the glint planted in the bench data (0-based; its row_id is one more).
-GLINT_ROW = 100
 
 
 @pytest.fixture(scope="session")

@@ -153,3 +153,10 @@ def measure(photocurrents_a, temperature_c, sensor: Sensor, rng, *, amp_noise_a=
     sigma = np.sqrt(2 * q * np.abs(i) * bandwidth_hz + amp_noise_a**2)
     i = i + rng.normal(0.0, 1.0, i.shape) * sigma
     return np.clip(np.round(i / lsb_a) * lsb_a, 0.0, full_scale_a)
+
+
+#: The simulated physical sensor of the tests (the simulator's kind of build errors). Here, not in conftest.py:
+#: a test module's `from conftest import …` takes whichever conftest was imported first (tests/web has one).
+SENSOR = Sensor()
+#: Row of the glint planted in the bench data (0-based; its row_id is one more).
+GLINT_ROW = 100

@@ -7,17 +7,19 @@ import subprocess
 import numpy as np
 import pytest
 from ccompiler import c_compiler
-from conftest import GLINT_ROW
+from qd_simulation import GLINT_ROW
 
 from calibration.errors import CalibrationFormatError
 from calibration.geometry import direction_vector
 from calibration.models import calibration_from_dict
 from calibration.qd.angles import angle_between_projections_deg
 from calibration.qd.dark import subtract_dark
+from calibration.qd.design import DEFAULT_QD
 from calibration.qd.document import QD_FORMAT_VERSION, apply_document, validate_document
 from calibration.qd.evaluation import METHODS
 from calibration.qd.export import c_header
 from calibration.qd.physical import invert_physical
+from calibration.qd.spot import spot_position, spot_ratios
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -37,14 +39,19 @@ def test_document_round_trips_through_json_and_applies_alone(method, outcome, be
     s = direction_vector(zen, az)
     np.testing.assert_allclose(s[:, 0] / s[:, 2], np.tan(np.radians(alpha)), atol=1e-12)
     np.testing.assert_allclose(s[:, 1] / s[:, 2], np.tan(np.radians(beta)), atol=1e-12)
+    # the document alone gives what the fitted model gives
+    photo = subtract_dark(bench_data.currents_a[light], bench_data.temperature_c[light], outcome.dark)
     if method == "physical":
         assert err.max() < 0.1  # single readings, noise and dark current included
-        photo = subtract_dark(bench_data.currents_a[light], bench_data.temperature_c[light], outcome.dark)
         a2, b2, _ = invert_physical(photo, report.model.parameters)
-        np.testing.assert_allclose(alpha, a2, atol=1e-9)
-        np.testing.assert_allclose(beta, b2, atol=1e-9)
     else:
         assert np.all(np.isfinite(err))
+        if method == "geometric":
+            a2, b2 = report.model.apply(*spot_position(photo, DEFAULT_QD.eq21_length_m))  # eqs. 2.1–2.2
+        else:
+            a2, b2 = report.model.evaluate(*spot_ratios(photo))  # eqs. 2.1, 2.3
+    np.testing.assert_allclose(alpha, a2, atol=1e-9)
+    np.testing.assert_allclose(beta, b2, atol=1e-9)
 
 
 def test_a_qd_document_is_not_mistaken_for_another(outcome):

@@ -5,7 +5,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import GLINT_ROW
+from qd_simulation import GLINT_ROW
 
 from calibration.errors import InsufficientDataError
 from calibration.qd.evaluation import (
@@ -52,9 +52,9 @@ def test_the_glint_and_only_the_glint_is_rejected_by_name(outcome, bench_data):
     assert i.size == 1 and outcome.directions.members[i[0]].size == 1
 
 
-def test_dark_current_fitted_from_the_dark_rows(outcome):
+def test_dark_current_fitted_from_the_dark_rows(outcome, bench_data):
     assert outcome.dark.kind == "exponential"  # the simulated diodes double every ~9 °C
-    assert outcome.dark.n_points == 39
+    assert outcome.dark.n_points == 39 == bench_data.dark.sum()  # every dark row: none was an outlier
     assert not any("dark readings" in w for w in outcome.warnings)
 
 
@@ -109,7 +109,10 @@ def test_jittered_repeats_still_group_and_saturated_rows_are_named(bench_data):
     named = {r.row_id: r.reason for r in result.rejected}
     for i in clip:
         assert "saturated" in named[int(data.row_id[i])]
-    assert (~result.directions.check).sum() == 289  # every node direction, its two passes together
+    alpha, beta = data.projection_deg
+    nodes = ~data.dark & ~data.check
+    n_nodes = len(set(zip(np.round(alpha[nodes]), np.round(beta[nodes]))))  # 17 × 17, each read twice
+    assert (~result.directions.check).sum() == 289 == n_nodes  # every node direction, its two passes together
     assert result.repeat_scatter_share is not None
     assert result.report("physical").heldout.max_deg < 0.1
     assert saturated_rows(cur, full_scale_a=top).sum() == 3

@@ -4,8 +4,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import SENSOR
-from qd_simulation import grid, measure
+from qd_simulation import SENSOR, grid, measure
 
 from calibration.qd.angles import angle_between_projections_deg
 from calibration.qd.design import QdDesign, quadrant_layout

@@ -60,6 +60,11 @@ def test_order_chosen_by_error_between_the_nodes():
                            + ("  <- chosen" if r["chosen"] else "") for r in sel.table))
     assert chosen["heldout_rms_deg"] <= 1.05 * best
     assert 3 <= sel.model.n_terms <= 45 and sel.model.kind in ("total", "polyij", "tensor")
+    # the rule: the fewest terms within 5 % of the best, and the model returned is that candidate's
+    assert chosen["n_terms"] == min(r["n_terms"] for r in sel.table if r["heldout_rms_deg"] <= 1.05 * best)
+    assert (sel.model.kind, sel.model.degree, sel.model.n_terms) == (chosen["kind"], chosen["degree"],
+                                                                     chosen["n_terms"])
+    assert sum(r["chosen"] for r in sel.table) == 1
     # a plane cannot follow arctan over ±40°: it is far worse between the nodes
     assert table[("total", "1")]["heldout_rms_deg"] > 10 * chosen["heldout_rms_deg"]
     # coefficients finite, conditioning reported
