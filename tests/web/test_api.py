@@ -827,6 +827,9 @@ def test_a_stopped_run_resumes_from_the_api_measuring_only_what_it_missed(client
 
     response = client.post(f"/api/runs/{aborted['id']}/resume", headers=AUTH)
     assert response.status_code == 202 and response.json()["message"] == f"run {aborted['id']} queued to resume"
+    # queued: the campaign stays "aborted" until the worker starts the resumed run (on a busy machine, after a poll)
+    _wait_for(lambda: any(r["parent_run_id"] == aborted["id"] for r in service.catalogue.runs(campaign_id)),
+              "the resumed run to start")
     assert _campaign_ended(client, campaign_id) == "completed"
     child = service.catalogue.runs(campaign_id)[-1]
     assert (child["parent_run_id"], child["status"]) == (aborted["id"], "completed")
