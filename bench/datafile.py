@@ -102,11 +102,12 @@ class CsvTable:
         return [row[j].strip() for row in self.rows]
 
 
-def read_csv_table(path) -> CsvTable:
-    """Read a CSV with a header row; blank lines and lines starting with ``#`` are skipped."""
+def read_csv_table(path, *, text: str | None = None) -> CsvTable:
+    """Read a CSV with a header row; blank lines and lines starting with ``#`` are skipped. With `text`, that is
+    the file's content (an upload) and `path` only names it in errors."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        text = path.read_text(encoding="utf-8-sig") if text is None else text.removeprefix("\ufeff")
     except FileNotFoundError:
         raise DataFileError(path, "no such file") from None
     except UnicodeDecodeError:

@@ -34,3 +34,8 @@ class CalibrationFormatError(CalibrationError):
 
 class FitError(CalibrationError):
     """A fit that did not converge to a usable calibration."""
+
+
+class FieldDataError(BenchDataError):
+    """Field data (a time series against the real Sun) that cannot be compared or located: bad times, a site out
+    of range, too short a track."""

@@ -140,8 +140,10 @@ IMPORT_EXCEPTIONS = {
 }
 
 #: calibration/'s third-party imports: numerics only (stdlib aside). OpenCV is used there as array numerics
-#: (medianBlur, dilate, moments in calibration/centroid.py), never for files or cameras (checked below).
-CALIBRATION_THIRD_PARTY = {"numpy", "scipy", "cv2"}
+#: (medianBlur, dilate, moments in calibration/centroid.py; projectPoints in calibration/camera/), never for files or
+#: cameras (checked below). pvlib is NREL's Solar Position Algorithm, the field's reference Sun
+#: (calibration/field/), a pure function of time and site.
+CALIBRATION_THIRD_PARTY = {"numpy", "scipy", "cv2", "pvlib"}
 CV2_IO = {"imread", "imwrite", "imdecode", "imencode", "VideoCapture", "VideoWriter", "imshow", "namedWindow"}
 
 

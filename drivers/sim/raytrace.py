@@ -409,7 +409,7 @@ def _ellipse_coverage(dx, dy, linear, shift, quad, supersample: int) -> np.ndarr
 
 def spot_patch(zenith_deg: float, azimuth_deg: float, optics: SensorOptics, *,
                source_diameter_deg: float = DEFAULT_BENCH.source_diameter_deg, supersample: int = 4,
-               patch_px: int | None = None) -> SpotPatch:
+               patch_px: int | None = None, occlusion: tuple[float, float, float] | None = None) -> SpotPatch:
     """The spot on a patch of pixels: the hole's shadow cast by a disc source through the glass.
 
     A die point is lit by a direction of the source when the ray through it, traced back up, passes both
@@ -434,6 +434,11 @@ def spot_patch(zenith_deg: float, azimuth_deg: float, optics: SensorOptics, *,
         one at 2, ~0.0005 px at 4).
     patch_px : int, optional
         Side of the patch [px]; by default large enough for the spot and its blur.
+    occlusion : (edge_offset_deg, edge_angle_deg, transmission), optional
+        A cloud's straight edge across the source (the real Sun in the field, :class:`drivers.sim.sky.CloudState`):
+        the part of the disc whose offset from the centre along `edge_angle_deg` (0 along the body's +x as seen
+        at the source, 90 along s × that) exceeds `edge_offset_deg` passes only `transmission` of its light.
+        The patch then holds the visible fraction of the disc (less than 1 at the plateau).
 
     Returns
     -------
@@ -468,9 +473,12 @@ def spot_patch(zenith_deg: float, azimuth_deg: float, optics: SensorOptics, *,
     source_px = radius_rad * np.sqrt((jac * jac).sum())  # px, the image's half-length (Frobenius ≥ spectral norm)
     k = int(np.ceil(source_px * s)) + 1
     grid = (np.arange(-k, k + 1, dtype=np.float32) / s)
-    kernel = _ellipse_coverage(grid[None, :], grid[:, None], _inv2(jac).astype(np.float32), np.zeros(2, np.float32),
+    to_angle = _inv2(jac).astype(np.float32)  # px → rad along (e_zenith, e_azimuth)
+    kernel = _ellipse_coverage(grid[None, :], grid[:, None], to_angle, np.zeros(2, np.float32),
                                np.eye(2, dtype=np.float32) / np.float32(radius_rad**2), s)
     kernel /= kernel.sum()
+    if occlusion is not None:
+        kernel *= _cloud_mask(grid, to_angle, sun, e_zenith, e_azimuth, *occlusion)
     reach = source_px + 3 * sigma_px
 
     # the shadow of the hole's faces for the source's centre: a die point is lit when its ray passes both
@@ -489,6 +497,23 @@ def spot_patch(zenith_deg: float, azimuth_deg: float, optics: SensorOptics, *,
         image = cv2.GaussianBlur(image, (0, 0), sigma_px * s, borderType=cv2.BORDER_CONSTANT)
     image = cv2.resize(image, (patch_px, patch_px), interpolation=cv2.INTER_AREA)  # the mean of each pixel
     return SpotPatch(image, x0, y0, cx, cy, float(np.degrees(np.arccos(min(cos_die, 1.0)))))
+
+
+def _cloud_mask(grid, to_angle, sun, e_zenith, e_azimuth, edge_offset_deg: float, edge_angle_deg: float,
+                transmission: float) -> np.ndarray:
+    """Transmission (1 clear, `transmission` behind the cloud) over the source kernel's grid [px offsets]."""
+    x_axis = np.array([1.0, 0.0, 0.0])
+    e1 = x_axis - (x_axis @ sun) * sun
+    if np.linalg.norm(e1) < 1e-9:  # the source along +x: any perpendicular will do
+        e1 = np.array([0.0, 1.0, 0.0]) - sun[1] * sun
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(sun, e1)
+    a = np.radians(edge_angle_deg)
+    towards = np.cos(a) * e1 + np.sin(a) * e2  # unit, towards the covered side
+    along = to_angle.T @ np.array([towards @ e_zenith, towards @ e_azimuth])  # rad of offset per px of (dx, dy)
+    # cv2.filter2D correlates: the kernel's weight at offset d moves the spot by −d, so it is the source at −d
+    offset = -(along[0] * grid[None, :] + along[1] * grid[:, None])
+    return np.where(offset > np.radians(edge_offset_deg), np.float32(transmission), np.float32(1.0))
 
 
 def spot_moments(patch: SpotPatch) -> tuple[float, float, np.ndarray]:

@@ -93,9 +93,10 @@ class SpotRenderer:
         if zenith >= 89:
             return None, zenith, azimuth
         optics = self.world.sensor.optics
-        key = (zenith, azimuth, optics, self.world.bench.source_diameter_deg)
+        key = (zenith, azimuth, optics, self.world.bench.source_diameter_deg, self.world.occlusion())
         if self._last is None or self._last[0] != key:
-            patch = spot_patch(zenith, azimuth, optics, source_diameter_deg=key[3], supersample=self.SUPER)
+            patch = spot_patch(zenith, azimuth, optics, source_diameter_deg=key[3], supersample=self.SUPER,
+                               occlusion=key[4])
             self._last = (key, patch)
         return self._last[1], zenith, azimuth
 

@@ -180,6 +180,11 @@ class SimWorld:
         """Relative irradiance on the sensor (lamp output through the shutter) [unitless]."""
         return self.lamp.irradiance()
 
+    def occlusion(self) -> tuple[float, float, float] | None:
+        """A cloud's edge across the source (offset, direction [°], transmission), as
+        :func:`drivers.sim.raytrace.spot_patch` takes it; the lab's source has none (a field world does)."""
+        return None
+
     def rng(self, stream: str) -> np.random.Generator:
         """A reproducible random generator for one named process of this bench."""
         return np.random.default_rng([self.seed, zlib.crc32(stream.encode())])
