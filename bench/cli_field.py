@@ -18,6 +18,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
+from calibration.errors import FieldDataError
 from calibration.field.sky import Atmosphere, Site, sun_position, utc_seconds
 
 from .cli_common import out, user_errors
@@ -126,6 +127,88 @@ def simulate(
         }, indent=1) + "\n")
 
 
+@field_app.command("record")
+@user_errors
+def record(
+    output: Path = typer.Option(..., "-o", "--output", help="Field CSV to write."),
+    kind: str = typer.Option(..., "--kind", help="The sensor: cmos (a CMOS module on a serial port) or camera "
+                                                 "(a camera OpenCV opens)."),
+    port: str = typer.Option(..., "--port", help="cmos: the port URL (/dev/ttyUSB0, socket://host:port, sim://NAME); "
+                                                 "camera: the OpenCV source (0, /dev/video0, a file)."),
+    hours: float = typer.Option(2.0, "--hours", min=1e-4, max=24.0, help="Duration [h]."),
+    interval: float = typer.Option(10.0, "--interval", min=0.05, max=3600.0, help="Between readings [s]."),
+    exposure: float = typer.Option(1.0, "--exposure", min=0.01, max=1000.0, help="First exposure [ms]."),
+    lat: Optional[float] = typer.Option(None, "--lat", help="Site latitude [°] (written in the header)."),
+    lon: Optional[float] = typer.Option(None, "--lon", help="Site longitude [°]."),
+    alt: Optional[float] = typer.Option(None, "--alt", help="Site height [m]."),
+    heading: Optional[float] = typer.Option(None, "--heading", help="Heading of the sensor's +x axis [°], if known."),
+    roll: Optional[float] = typer.Option(None, "--roll", help="Mount roll from an inclinometer [°]."),
+    pitch: Optional[float] = typer.Option(None, "--pitch", help="Mount pitch from an inclinometer [°]."),
+    pressure: Optional[float] = typer.Option(None, "--pressure", help="Station pressure [hPa]."),
+    temperature: Optional[float] = typer.Option(None, "--temperature", help="Air temperature [°C]."),
+) -> None:
+    """Record a field run of a real sensor: a reading every --interval seconds, stamped in UTC by this computer's
+    clock (keep it synchronised: 1 s of clock error is 0.004° of the Sun's motion), the exposure following the
+    Sun. The rows are written as they come, so a run cut short keeps what it read."""
+    import time as _time
+
+    from .field_datafile import write_field_csv
+    from .field_run import FieldRecord, record_field
+
+    if kind not in ("cmos", "camera"):
+        raise FieldDataError(f"--kind must be cmos or camera, got {kind!r}")
+    if lat is not None:
+        Site(lat, lon if lon is not None else 0.0, alt or 0.0)  # refuse a site out of range before anything runs
+    sensor, read, full_scale, close = _open_sensor(kind, port)
+    start = _time.time()
+    metadata = {"latitude_deg": lat, "longitude_deg": lon, "altitude_m": alt, "heading_deg": heading,
+                "roll_deg": roll, "pitch_deg": pitch, "pressure_hpa": pressure, "temperature_c": temperature}
+
+    def wait_until(offset_s: float) -> None:
+        delay = start + offset_s - _time.time()
+        if delay > 0:
+            _time.sleep(delay)
+
+    offsets = np.arange(0.0, hours * 3600.0 + 1e-9, interval)
+    recorder = FieldRecord()
+    try:
+        with out.status("recording") as status:
+            def progress(i: int, n: int) -> None:
+                status.update(f"reading {i}/{n}")
+                if i % 10 == 0:  # keep what was read on disk while the run goes on
+                    write_field_csv(output, recorder.columns, metadata=metadata)
+
+            record_field(sensor, read, offsets_s=offsets, start_utc_s=start, wait_until=wait_until,
+                         full_scale_dn=full_scale, exposure_ms=exposure, clock=lambda: _time.time() - start,
+                         progress=progress, into=recorder)
+    finally:
+        close()
+        if len(recorder):  # whatever ended the run, what was read is written
+            write_field_csv(output, recorder.columns, metadata=metadata)
+    ok = sum(s == "ok" for s in recorder.columns["status"])
+    out.print(f"{len(recorder)} readings ({ok} with a spot) written to {escape(str(output))}", highlight=False)
+
+
+def _open_sensor(kind: str, port: str):
+    """The sensor's driver, its family's reading function, its full scale and how to close it."""
+    from .families import family
+
+    if kind == "cmos":
+        from drivers.cmos_sensor import CmosSunSensor
+        from drivers.transport import open_port
+
+        from .families.cmos import FULL_SCALE_DN
+
+        link = open_port(port)
+        sensor = CmosSunSensor(link)
+        sensor.identify()
+        return sensor, family("cmos").read, float(FULL_SCALE_DN), link.close
+    from drivers.usb_camera import UsbCamera
+
+    camera = UsbCamera(int(port) if port.isdigit() else port)
+    return camera, family("camera").read, 255.0, camera.close
+
+
 def _stats_table(title: str, rows: list[tuple[str, dict]]) -> Table:
     table = Table(title=title)
     for column in ("samples", "n", "zenith RMS [°]", "azimuth RMS [°]", "vector RMS [°]", "vector σ [°]",
@@ -152,7 +235,7 @@ def _analysis(data_csv: Path, cal: Optional[Path], *, lat, lon, alt, heading, ro
     site = None
     if lat is not None or lon is not None:
         if lat is None or lon is None:
-            raise typer.BadParameter("give both --lat and --lon")
+            raise FieldDataError("give both --lat and --lon")
         site = Site(lat, lon, alt or 0.0)
     setup = field_setup(data, site=site, heading_deg=heading, roll_deg=roll, pitch_deg=pitch, pressure_hpa=pressure,
                         temperature_c=temperature, delta_t_s=delta_t, fov_half_deg=fov, calibration=calibration)

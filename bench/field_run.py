@@ -58,8 +58,8 @@ def _better_exposure(reading, exposure_ms: float, full_scale_dn: float, limits_m
 
 def record_field(sensor, read: Callable, *, offsets_s, start_utc_s: float, wait_until: Callable[[float], None],
                  full_scale_dn: float, exposure_ms: float = 1.0, exposure_limits_ms=(0.01, 1000.0),
-                 clock: Callable[[], float] | None = None, progress: Callable[[int, int], None] | None = None
-                 ) -> FieldRecord:
+                 clock: Callable[[], float] | None = None, progress: Callable[[int, int], None] | None = None,
+                 into: FieldRecord | None = None) -> FieldRecord:
     """Read the sensor at `start_utc_s + offsets_s` (UTC seconds), adjusting the exposure to the Sun.
 
     Parameters
@@ -76,8 +76,10 @@ def record_field(sensor, read: Callable, *, offsets_s, start_utc_s: float, wait_
         The sensor's full scale (saturation) [DN].
     clock : callable, optional
         Seconds since the run's start, for the reading's own time stamp (default: the offset asked).
+    into : FieldRecord, optional
+        Where to record (so a caller keeps what was read if the run is cut short).
     """
-    record = FieldRecord()
+    record = into if into is not None else FieldRecord()
     exposure = float(sensor.set_exposure_ms(exposure_ms) or exposure_ms)
     offsets = np.asarray(offsets_s, dtype=float)
     now = clock or (lambda: float(offsets[i]))

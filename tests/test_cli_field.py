@@ -162,3 +162,35 @@ def test_field_commands_refuse_bad_input(day, tmp_path):
     assert_user_error(invoke("field", "simulate", "-o", tmp_path / "x.csv", "--bench",
                              ROOT / "examples/bench-sim-qd.yaml"), "family")
     assert_user_error(invoke("field", "compare", day / "day.csv", "--cal", day / "bench.csv"), "JSON")
+
+
+def test_record_reads_a_sensor_on_a_port_in_real_time(tmp_path):
+    """`field record` on a CMOS module at a port URL (here the module's simulator on a field whose sky moves in
+    real time, served at a sim:// URL): readings every interval, stamped by this computer's clock, the header from
+    the options."""
+    import time
+
+    from drivers.sim import registry
+    from drivers.sim.cmos_sensor import CmosSensorSimulator
+    from drivers.sim.field import field_world
+    from drivers.sim.sky import SimulatedMount, SimulatedSky
+
+    start = 1569729497.0  # seed 003's field day, daylight
+    world = field_world(SimulatedSky(54.8437, 83.093, 160.0), SimulatedMount(12.0), start, time_scale=1.0)
+    url = registry.register("test-record-cmos", CmosSensorSimulator(world))
+    try:
+        before = time.time()
+        result = invoke("field", "record", "-o", tmp_path / "rec.csv", "--kind", "cmos", "--port", url, "--hours",
+                        0.5 / 3600, "--interval", 0.1, "--lat", 54.8437, "--lon", 83.093, "--roll", 0.0, "--pitch",
+                        0.0)
+        after = time.time()
+    finally:
+        registry.unregister("test-record-cmos")
+    assert result.exit_code == 0, result.output
+    data = read_field_csv(tmp_path / "rec.csv")
+    assert len(data) == 6 and data.ok.all()
+    # on schedule: a reading late (the first one's exposure tries) is followed at once, not pushed back
+    assert before <= data.t_s[0] and data.t_s[-1] <= after and np.all(np.diff(data.t_s) > 0)
+    assert data.t_s[-1] - before >= 0.5
+    assert data.metadata == {"latitude_deg": 54.8437, "longitude_deg": 83.093, "roll_deg": 0.0, "pitch_deg": 0.0}
+    assert_user_error(invoke("field", "record", "-o", tmp_path / "x.csv", "--kind", "ccd", "--port", url), "--kind")

@@ -91,12 +91,13 @@ class FieldTruth:
 
 
 def field_world(sky: SimulatedSky, mount: SimulatedMount, start_utc_s: float, *, base: SimWorld | None = None,
-                sun_irradiance: float = SUN_IRRADIANCE) -> FieldWorld:
+                sun_irradiance: float = SUN_IRRADIANCE, time_scale: float = 0.0) -> FieldWorld:
     """A field world for the sensor of `base` (a bench's world: the same sensor build, seed and temperature), its
-    clock at time scale 0 (a field day is simulated as fast as it renders)."""
+    clock at `time_scale` (0: a field day is simulated as fast as it renders; 1: the sky moves in real time, for a
+    recorder that sleeps between readings)."""
     from .clock import SimClock
 
     base = base or SimWorld()
-    return FieldWorld(clock=SimClock(0.0), bench=base.bench, sensor=base.sensor, lamp_spec=base.lamp_spec,
+    return FieldWorld(clock=SimClock(time_scale), bench=base.bench, sensor=base.sensor, lamp_spec=base.lamp_spec,
                       seed=base.seed, temperature_c=base.temperature_c, sky=sky, field_mount=mount,
                       start_utc_s=float(start_utc_s), sun_irradiance=sun_irradiance)
