@@ -25,7 +25,7 @@ from drivers.errors import LimitError
 
 from .guard import Guard
 from .idempotency import IdempotencyKeys
-from .routes import campaigns, commands, docs, downloads, events, fits, pages, qd, run, runs, status
+from .routes import campaigns, commands, docs, downloads, events, field, fits, pages, qd, run, runs, status
 from .server import Shutdown
 from .settings import WebSettings
 
@@ -38,6 +38,7 @@ TAGS = [
     {"name": "runs", "description": "Recorded runs, their points and fitted calibrations."},
     {"name": "downloads", "description": "Bench data CSV, calibration JSON and C headers."},
     {"name": "events", "description": "Server-sent events of the bench."},
+    {"name": "field", "description": "Field data against the real Sun: the errors over time, the site located."},
 ]
 
 
@@ -127,7 +128,7 @@ def create_app(service, *, settings: WebSettings) -> FastAPI:
     app.state.shutdown = shutdown
     app.state.idempotency = IdempotencyKeys()
     _install_error_handlers(app)
-    for module in (status, commands, campaigns, run, runs, fits, qd, downloads, events, docs):
+    for module in (status, commands, campaigns, run, runs, fits, qd, field, downloads, events, docs):
         app.include_router(module.router)
-    pages.install(app)  # the dashboard: /, /launch, /run, /results, /fleet and /static
+    pages.install(app)  # the dashboard: /, /launch, /run, /results, /fleet, /field and /static
     return app

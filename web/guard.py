@@ -7,7 +7,9 @@
   any other gets 400.
 * **Body limit**: a request body larger than :attr:`~web.settings.WebSettings.max_body_bytes` (64 KiB by
   default; the largest campaign is a few KiB) is refused with 413 before anything parses it, by its
-  ``Content-Length`` when it sends one, else as soon as the bytes read pass the limit; a JSON body nested
+  ``Content-Length`` when it sends one, else as soon as the bytes read pass the limit. Under
+  :data:`FIELD_PREFIX` (a field CSV posted whole: a 2-hour track at 1 Hz is ~600 KB) the limit is
+  :attr:`~web.settings.WebSettings.field_max_body_bytes` (4 MiB by default) instead. A JSON body nested
   deeper than :data:`MAX_JSON_DEPTH` is refused with 422 before the JSON parser recurses into it.
 * **Security headers** on every response: a Content-Security-Policy that lets the pages load only this
   server's scripts (plotly.js included: it is served from the installed package), no framing
@@ -29,6 +31,8 @@ from .settings import WebSettings
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "[::1]")
 #: Deepest JSON nesting a request may have (a campaign nests 4 levels)
 MAX_JSON_DEPTH = 32
+#: Paths whose bodies may be as large as WebSettings.field_max_body_bytes (the field data routes)
+FIELD_PREFIX = "/api/field/"
 
 #: What the pages need: their own scripts and styles, plotly's inline styles and data: images, the API
 CONTENT_SECURITY_POLICY = ("default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
@@ -84,6 +88,7 @@ class Guard:
     def __init__(self, app: ASGIApp, settings: WebSettings):
         self.app = app
         self.max_body = settings.max_body_bytes
+        self.field_max_body = settings.field_max_body_bytes
         names = set(LOOPBACK_HOSTS) | {h.lower() for h in settings.allowed_hosts}
         if settings.host not in ("0.0.0.0", "::", ""):  # a wildcard bind is not a name clients use
             names.add(f"[{settings.host}]" if ":" in settings.host else settings.host.lower())
@@ -102,13 +107,14 @@ class Guard:
             headers = dict(scope.get("headers") or [])
             length = headers.get(b"content-length")
             if length is not None or b"chunked" in headers.get(b"transfer-encoding", b""):
-                if length is not None and (not length.isdigit() or int(length) > self.max_body):
-                    await self._answer(scope, send, 413, self._too_large())
+                limit = self.body_limit(scope.get("path", ""))
+                if length is not None and (not length.isdigit() or int(length) > limit):
+                    await self._answer(scope, send, 413, self._too_large(limit))
                     return
                 try:
-                    body = await self._read_body(receive)
+                    body = await self._read_body(receive, limit)
                 except _TooLarge:
-                    await self._answer(scope, send, 413, self._too_large())
+                    await self._answer(scope, send, 413, self._too_large(limit))
                     return
                 if body.lstrip()[:1] in (b"{", b"[") and json_depth(body) > MAX_JSON_DEPTH:
                     await self._answer(scope, send, 422, f"the JSON body nests deeper than {MAX_JSON_DEPTH} levels")
@@ -127,10 +133,16 @@ class Guard:
         return (f"host {host!r} is not this server's: it answers to {', '.join(sorted(self.hosts))}"
                 f"{f' on port {own_port}' if own_port else ''} (sunbench serve --allowed-host adds a name)")
 
-    def _too_large(self) -> str:
-        return f"the request body is larger than {self.max_body} bytes, the largest this API takes"
+    def body_limit(self, path: str) -> int:
+        """The largest body a request to `path` may send [bytes]."""
+        return self.field_max_body if path.startswith(FIELD_PREFIX) else self.max_body
 
-    async def _read_body(self, receive: Receive) -> bytes:
+    @staticmethod
+    def _too_large(limit: int) -> str:
+        return f"the request body is larger than {limit} bytes, the largest this API takes at this path"
+
+    @staticmethod
+    async def _read_body(receive: Receive, limit: int) -> bytes:
         chunks, size = [], 0
         while True:
             message = await receive()
@@ -138,7 +150,7 @@ class Guard:
                 break
             chunk = message.get("body", b"")
             size += len(chunk)
-            if size > self.max_body:
+            if size > limit:
                 raise _TooLarge()
             chunks.append(chunk)
             if not message.get("more_body", False):

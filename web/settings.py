@@ -35,6 +35,10 @@ class WebSettings(BaseModel):
         here; the tests' in-process client, whose requests say ``Host: testserver``, adds that one.
     max_body_bytes : int
         Largest request body taken [bytes]; a larger one gets 413 before it is parsed.
+    field_max_body_bytes : int
+        Largest request body taken under ``/api/field/`` [bytes] (4 MiB by default), instead of `max_body_bytes`:
+        a field CSV is posted whole, and a 2-hour track at 1 Hz (~7200 rows) is ~600 KB. A larger one gets 413
+        before it is parsed, as any other.
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -46,6 +50,7 @@ class WebSettings(BaseModel):
     sse_keepalive_s: float = Field(15.0, gt=0)
     allowed_hosts: tuple[str, ...] = ()
     max_body_bytes: int = Field(64 * 1024, ge=1024, le=16 * 1024 * 1024)
+    field_max_body_bytes: int = Field(4 * 1024 * 1024, ge=1024, le=64 * 1024 * 1024)
 
     @field_validator("token")
     @classmethod

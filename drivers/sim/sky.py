@@ -175,6 +175,7 @@ def random_clouds(rng: np.random.Generator, start_s: float, end_s: float, *, ban
                   mean_duration_s: float = 600.0, transmission_range=(0.0, 0.3)) -> tuple[CloudBank, ...]:
     """Cloud banks at random times over [start_s, end_s) (a Poisson process), random drift directions, speeds
     and durations."""
+    end_s = max(end_s, start_s)  # a run may end before the interval
     n = rng.poisson(banks_per_hour * (end_s - start_s) / 3600.0)
     starts = np.sort(rng.uniform(start_s, end_s, n))
     return tuple(CloudBank(start_s=float(t), duration_s=float(rng.exponential(mean_duration_s)),

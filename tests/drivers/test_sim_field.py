@@ -98,3 +98,9 @@ def test_a_field_day_through_the_cmos_driver_dims_and_moves_under_cloud():
         registry.unregister("test-field-sensor")
     assert (half.peak_dn - half.background_dn) / (clear.peak_dn - clear.background_dn) == pytest.approx(0.5, abs=0.1)
     assert np.hypot(half.x_px - clear.x_px, half.y_px - clear.y_px) > 0.3
+
+
+def test_random_clouds_over_an_interval_that_ends_before_it_starts_are_none():
+    from drivers.sim.sky import random_clouds
+
+    assert random_clouds(np.random.default_rng(0), 100.0, 50.0, banks_per_hour=60) == ()

@@ -62,6 +62,9 @@ READS = [
     ("GET", "/api/frame.png", None),
     ("GET", "/api/frame/spot", None),
     ("POST", "/api/campaigns/dry-run", SMALL_JSON),
+    ("POST", "/api/field/analyse", {"csv": "# latitude_deg: 54.8437\n# longitude_deg: 83.093\n# heading_deg: 0\n"
+                                           "time_utc,zenith_deg,azimuth_deg\n2019-09-29T05:00:00Z,58,160\n"
+                                           "2019-09-29T05:01:00Z,58,160.3\n", "locate": False}),
     ("GET", "/api/campaigns", None),
     ("GET", "/api/campaigns/1/fleet", None),
     ("GET", "/api/runs", None),

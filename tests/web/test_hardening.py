@@ -22,6 +22,7 @@ from web.app import create_app
 from web.guard import MAX_JSON_DEPTH, SECURITY_HEADERS, json_depth, split_host
 from web.idempotency import IdempotencyKeys, KeyReused
 from web.routes.docs import inline_script_hashes
+from web.routes.field import FieldAnalyseRequest
 from web.schemas import JogCommand, LampCommand, MountConfirm, ShutterCommand
 from web.settings import WebSettings
 
@@ -74,7 +75,7 @@ def test_id_queries_are_bounded_too(client):
 
 # -- no JSON true for a number, anywhere in a request -------------------------------------------------------
 REQUEST_MODELS = {"JogCommand": JogCommand, "LampCommand": LampCommand, "ShutterCommand": ShutterCommand,
-                  "MountConfirm": MountConfirm, "Campaign": Campaign}
+                  "MountConfirm": MountConfirm, "Campaign": Campaign, "FieldAnalyseRequest": FieldAnalyseRequest}
 
 
 def _numeric_slots(model: type[BaseModel], prefix=()):

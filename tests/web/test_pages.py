@@ -28,7 +28,7 @@ SMALL = Campaign(name="small", frames="none", seed003=Seed003Procedure(
 
 # page → its JS module, and whether it draws with plotly
 MODULES = {"/": ("bench.js", False), "/launch": ("launch.js", False), "/run": ("run.js", True),
-           "/results": ("results.js", True), "/fleet": ("fleet.js", False)}
+           "/results": ("results.js", True), "/fleet": ("fleet.js", False), "/field": ("field.js", True)}
 EXTERNAL_URL = re.compile(r"(?:https?:)?//[a-z0-9.-]+\.[a-z]{2,}", re.IGNORECASE)
 XML_NAMESPACE = re.compile(r'\sxmlns(?::\w+)?="[^"]*"')
 

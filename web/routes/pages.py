@@ -24,9 +24,10 @@ LAYOUT = Path(__file__).resolve().parent.parent / "templates" / "layout.html"
 #: URL path → page file in STATIC_DIR (the page's <main>; the head, the navigation and the token form are
 #: the layout's, written once)
 PAGES = {"/": "bench.html", "/launch": "launch.html", "/run": "run.html", "/results": "results.html",
-         "/fleet": "fleet.html"}
-TITLES = {"/": "Bench", "/launch": "Campaign launcher", "/run": "Live run", "/results": "Results", "/fleet": "Fleet"}
-PLOTS = {"/run", "/results"}  # the pages that load plotly.js
+         "/fleet": "fleet.html", "/field": "field.html"}
+TITLES = {"/": "Bench", "/launch": "Campaign launcher", "/run": "Live run", "/results": "Results", "/fleet": "Fleet",
+          "/field": "Field data"}
+PLOTS = {"/run", "/results", "/field"}  # the pages that load plotly.js
 
 router = APIRouter(include_in_schema=False)
 
