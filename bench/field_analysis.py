@@ -239,11 +239,12 @@ def analysis_document(analysis: FieldAnalysis, *, name: str) -> dict:
 
 
 def analyse_field_csv(text: str, *, calibration: dict | None = None, heading: str = "file", level: str = "file",
-                      locate: bool = True, fov_half_deg: float | None = None, name: str = "upload.csv") -> dict:
+                      locate: bool = True, fov_half_deg: float | None = None, level_sd_deg: float | None = None,
+                      name: str = "upload.csv") -> dict:
     """A field CSV's content analysed (:func:`analyse_field`) as JSON (:func:`analysis_document`); bad input
     raises :class:`~bench.datafile.DataFileError` or a :class:`~calibration.errors.CalibrationError`."""
     data = read_field_csv(name, text=text)
     setup = field_setup(data, fov_half_deg=fov_half_deg, calibration=calibration)
     analysis = analyse_field(data, calibration, heading=heading, level=level, do_compare=setup.site is not None,
-                             do_locate=locate, setup=setup)
+                             do_locate=locate, setup=setup, level_sd_deg=level_sd_deg)
     return analysis_document(analysis, name=name)

@@ -150,6 +150,16 @@ def test_without_locate_there_is_no_location_and_a_fitted_heading_says_so(field_
     assert heading["fitted"] is True and heading["deg"] is not None
 
 
+def test_a_stated_level_uncertainty_widens_the_located_site(field_client, field_files, analysed):
+    """The level's 1σ enters the site's covariance (a tilt moves the site by ~111 km per degree): with 0.1° the
+    1σ grows to kilometres, and the answer says why."""
+    wide = _analyse(field_client, _body(field_files, level_sd_deg=0.1))["location"]
+    assert wide["sd_latitude_km"] > 5 and wide["sd_latitude_km"] > 3 * analysed["location"]["sd_latitude_km"]
+    assert any("level is known to ±0.1°" in w for w in wide["warnings"])
+    refused = field_client.post(ANALYSE, json=_body(field_files, level_sd_deg=0), headers=AUTH)
+    assert refused.status_code == 422 and "level_sd_deg" in refused.text
+
+
 def test_the_name_only_names_the_upload(field_client, field_files):
     """The server reads the posted text, never a file of that name on its own disk."""
     result = _analyse(field_client, _body(field_files, locate=False, name="/etc/passwd"))

@@ -53,6 +53,10 @@ class FieldAnalyseRequest(BaseModel):
     locate: bool = Field(True, description="Also locate the site (latitude, longitude, heading) from the track")
     fov_half_deg: float | None = Field(None, gt=0, le=90, description="Half field of view [°]: samples beyond it "
                                                                       "are out of the field; null: the file's")
+    level_sd_deg: float | None = Field(None, gt=0, le=10, description="1σ of the file's roll and pitch [°] (the "
+                                                                      "inclinometer's accuracy): the located site's "
+                                                                      "uncertainty then includes the level's; null: "
+                                                                      "the level is taken as exact")
     name: str = Field("upload.csv", min_length=1, max_length=255, description="The file's name, for the messages")
 
 
@@ -169,7 +173,8 @@ def analyse_field(request: FieldAnalyseRequest):
         try:
             result = analyse_field_csv(request.csv, calibration=request.calibration, heading=request.heading,
                                        level=request.level, locate=request.locate,
-                                       fov_half_deg=request.fov_half_deg, name=request.name)
+                                       fov_half_deg=request.fov_half_deg, level_sd_deg=request.level_sd_deg,
+                                       name=request.name)
         except (DataFileError, CalibrationError) as exc:
             raise HTTPException(422, str(exc)) from None
     return plain(result)

@@ -31,9 +31,11 @@ async function requestBody(form) {
     }
   }
   const fov = form.elements.fov_half_deg.value.trim();
+  const levelSd = form.elements.level_sd_deg.value.trim();
   return {
     csv: await readText(csvFile), calibration, heading: form.elements.heading.value, level: form.elements.level.value,
-    locate: form.elements.locate.checked, fov_half_deg: fov === "" ? null : Number(fov), name: csvFile.name,
+    locate: form.elements.locate.checked, fov_half_deg: fov === "" ? null : Number(fov),
+    level_sd_deg: levelSd === "" ? null : Number(levelSd), name: csvFile.name,
   };
 }
 
