@@ -30,7 +30,7 @@ import numpy as np
 from ..errors import FieldDataError
 from ..geometry import angular_error_deg, direction_vector, wrap_deg, zenith_azimuth_from_vector
 from .locate import _closed_form_heading, _level_matrix, tangent_basis
-from .sky import Atmosphere, Mount, Site, mount_matrix, sun_position, utc_seconds, zenith_azimuth_enu
+from .sky import Atmosphere, Mount, Site, mount_matrix, sun_position, track_arrays, zenith_azimuth_enu
 
 MODES = ("given", "fit")
 
@@ -303,12 +303,7 @@ def compare_with_sun(times_s, zenith_deg, azimuth_deg, site: Site, mount: Mount 
     """
     if heading not in MODES or level not in MODES:
         raise FieldDataError(f"heading and level must be one of {MODES}, got {heading!r}, {level!r}")
-    t = np.atleast_1d(np.asarray(times_s, dtype=float) if _numeric(times_s) else utc_seconds(times_s))
-    th = np.atleast_1d(np.asarray(zenith_deg, dtype=float))
-    ph = np.atleast_1d(np.asarray(azimuth_deg, dtype=float))
-    if not t.shape == th.shape == ph.shape or t.ndim != 1:
-        raise FieldDataError(f"times, zenith and azimuth must be 1-D and of one length, got {t.shape}, "
-                             f"{th.shape}, {ph.shape}")
+    t, th, ph = track_arrays(times_s, zenith_deg, azimuth_deg)
     size = t.size
     cloudy_f = _flags(cloudy, size, "cloudy")
     valid = ~_flags(invalid, size, "invalid") & np.isfinite(th) & np.isfinite(ph) & np.isfinite(t)
@@ -395,6 +390,3 @@ def compare_with_sun(times_s, zenith_deg, azimuth_deg, site: Site, mount: Mount 
         in_fov=in_fov, valid=valid, cloudy=cloudy_f, used=used, mount=mount, mount_fit=mount_fit,
         summary=summary, fov_half_deg=float(fov_half_deg), notes=tuple(notes), warnings=tuple(warnings))
 
-
-def _numeric(times) -> bool:
-    return not isinstance(times, str) and np.asarray(times).dtype.kind in "if"

@@ -42,7 +42,7 @@ import numpy as np
 
 from ..errors import FieldDataError
 from ..geometry import direction_vector
-from .sky import Atmosphere, Mount, Site, delta_t_estimate_s, mount_matrix, utc_seconds
+from .sky import Atmosphere, Mount, Site, delta_t_estimate_s, mount_matrix, times_seconds, track_arrays
 
 #: WGS84 semi-major axis [km] and first eccentricity squared: local radii of curvature for km offsets.
 WGS84_A_KM = 6378.137
@@ -83,7 +83,7 @@ class SunEphemeris:
     def __init__(self, times, atmosphere: Atmosphere = Atmosphere()):
         from pvlib import spa
 
-        t = np.atleast_1d(np.asarray(times, dtype=float) if _is_numeric(times) else utc_seconds(times))
+        t = times_seconds(times)
         if not np.all(np.isfinite(t)):
             raise FieldDataError("times must be finite", column="time_utc")
         delta_t = atmosphere.delta_t_s if atmosphere.delta_t_s is not None else delta_t_estimate_s(t)
@@ -139,12 +139,6 @@ class SunEphemeris:
         zenith, azimuth = self.apparent(latitude_deg, longitude_deg, altitude_m)
         z, a = np.radians(zenith), np.radians(azimuth)
         return np.stack([np.sin(z) * np.sin(a), np.sin(z) * np.cos(a), np.cos(z)], axis=-1)
-
-
-def _is_numeric(times) -> bool:
-    if isinstance(times, str):
-        return False
-    return np.asarray(times).dtype.kind in "if"
 
 
 def tangent_basis(n) -> tuple[np.ndarray, np.ndarray]:
@@ -387,12 +381,7 @@ def _coarse_search(ephemeris: SunEphemeris, n: np.ndarray, altitude_m: float, ro
 def _check_inputs(times_s, zenith_deg, azimuth_deg, level: str):
     if level not in LEVEL_MODES:
         raise FieldDataError(f"level must be one of {LEVEL_MODES}, got {level!r}")
-    t = np.atleast_1d(np.asarray(times_s, dtype=float) if _is_numeric(times_s) else utc_seconds(times_s))
-    th = np.atleast_1d(np.asarray(zenith_deg, dtype=float))
-    ph = np.atleast_1d(np.asarray(azimuth_deg, dtype=float))
-    if not t.shape == th.shape == ph.shape or t.ndim != 1:
-        raise FieldDataError(f"times, zenith and azimuth must be 1-D and of one length, got {t.shape}, "
-                             f"{th.shape}, {ph.shape}")
+    t, th, ph = track_arrays(times_s, zenith_deg, azimuth_deg)
     ok = np.isfinite(t) & np.isfinite(th) & np.isfinite(ph)
     t, th, ph = t[ok], th[ok], ph[ok]
     n_params = 5 if level == "fit" else 3

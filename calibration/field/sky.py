@@ -158,8 +158,7 @@ def sun_position(times, site: Site, atmosphere: Atmosphere = Atmosphere()) -> Su
     """
     from pvlib import spa  # pandas comes with it; load it only when the Sun is asked for
 
-    t = np.asarray(times, dtype=float) if _is_numeric(times) else utc_seconds(times)
-    t = np.atleast_1d(t)
+    t = times_seconds(times)
     delta_t = atmosphere.delta_t_s if atmosphere.delta_t_s is not None else delta_t_estimate_s(t)
     out = spa.solar_position_numpy(t, site.latitude_deg, site.longitude_deg, site.altitude_m,
                                    atmosphere.pressure_hpa, atmosphere.temperature_c, delta_t,
@@ -168,9 +167,27 @@ def sun_position(times, site: Site, atmosphere: Atmosphere = Atmosphere()) -> Su
                        azimuth_deg=np.asarray(out[4]))
 
 
-def _is_numeric(times) -> bool:
-    arr = np.asarray(times) if not isinstance(times, str) else None
-    return arr is not None and arr.dtype.kind in "if"
+def times_seconds(times) -> np.ndarray:
+    """Unix seconds (1-D) of numbers (taken as Unix seconds already) or of what :func:`utc_seconds` reads."""
+    numeric = not isinstance(times, str) and np.asarray(times).dtype.kind in "if"
+    return np.atleast_1d(np.asarray(times, dtype=float) if numeric else utc_seconds(times))
+
+
+def track_arrays(times_s, zenith_deg, azimuth_deg) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A track's times [Unix s] and the sensor's θ, φ [°] as 1-D float arrays of one length.
+
+    Raises
+    ------
+    FieldDataError
+        Arrays of different shapes or dimensions.
+    """
+    t = times_seconds(times_s)
+    th = np.atleast_1d(np.asarray(zenith_deg, dtype=float))
+    ph = np.atleast_1d(np.asarray(azimuth_deg, dtype=float))
+    if not t.shape == th.shape == ph.shape or t.ndim != 1:
+        raise FieldDataError(f"times, zenith and azimuth must be 1-D and of one length, got {t.shape}, "
+                             f"{th.shape}, {ph.shape}")
+    return t, th, ph
 
 
 def enu_vector(zenith_deg, azimuth_deg) -> np.ndarray:
