@@ -458,7 +458,7 @@ def locate(times_s, zenith_deg, azimuth_deg, *, altitude_m: float = 0.0, atmosph
     ephemeris = SunEphemeris(t, atmosphere)
     if level_sd_deg is not None and not level_sd_deg > 0:
         raise FieldDataError(f"level_sd_deg must be positive, got {level_sd_deg}")
-    prior = level_sd_deg is not None and level != "fit"
+    prior = level_sd_deg is not None  # the level fitted, held to the given one by its stated σ
     fit_level = level == "fit" or prior
     roll0, pitch0 = float(mount.roll_deg), float(mount.pitch_deg)
     prior_weight = 0.0  # (noise / level σ): the prior's rows in the residual's units, set once the noise is known
@@ -496,14 +496,22 @@ def locate(times_s, zenith_deg, azimuth_deg, *, altitude_m: float = 0.0, atmosph
         sol = solve(np.array([lat0, lon0, psi0]), False)
         if best is None or sol.cost < best.cost:
             best = sol
-    if prior:  # the noise, for the prior's weight: given, or from the fit with the level as given
-        guess = sigma_deg if sigma_deg is not None else np.sqrt(np.sum(best.fun**2) / max(best.fun.size - 3, 1))
+    def data_noise(rows: np.ndarray, n_free: int) -> float:
+        return float(np.sqrt(np.sum(rows**2) / max(rows.size - n_free, 1)))
+
+    if prior:  # the prior's rows weigh noise/σ_level: the noise given, or the residuals' (floored: exact data)
+        guess = sigma_deg if sigma_deg is not None else max(data_noise(best.fun, 3), 1e-6)
         prior_weight = float(guess) / float(level_sd_deg)
     if fit_level:
         best = solve(np.concatenate([best.x, [roll0, pitch0]]), True)
+        if prior and sigma_deg is None:  # weigh the prior by the noise this fit leaves, once more if it moved
+            final = max(data_noise(best.fun[:2 * t.size], 3), 1e-6)
+            if abs(final / guess - 1.0) > 0.2:
+                prior_weight = final / float(level_sd_deg)
+                best = solve(best.x, True)
     x = best.x
     r = best.fun[:2 * t.size]  # the data's rows (without a prior's)
-    jac = best.jac
+    jac = best.jac[:2 * t.size]
     names = ("latitude", "longitude", "heading") + (("roll", "pitch") if fit_level else ())
     m_eq, p = r.size, x.size - (2 if prior else 0)  # a prior adds two equations for its two unknowns
     rms = float(np.sqrt(np.mean(r**2)))
@@ -514,13 +522,17 @@ def locate(times_s, zenith_deg, azimuth_deg, *, altitude_m: float = 0.0, atmosph
     else:
         noise = float(sigma_deg)
         source = "given"
-    # (JᵀJ)⁻¹ through the SVD of the column-scaled Jacobian (stable and honest about near-singular directions)
-    col = np.linalg.norm(jac, axis=0)
+    # (JᵀJ)⁻¹ of the whitened rows — the data's over the noise, a prior's over the level's σ — through the SVD of
+    # the column-scaled Jacobian (stable and honest about near-singular directions)
+    whitened = jac / max(noise, 1e-12)
+    if prior:
+        whitened = np.vstack([whitened, np.eye(5)[3:] / float(level_sd_deg)])
+    col = np.linalg.norm(whitened, axis=0)
     col = np.where(col > 0, col, 1.0)
-    _, sv, vt = np.linalg.svd(jac / col, full_matrices=False)
-    tiny = np.finfo(float).eps * sv[0] * max(jac.shape)
+    _, sv, vt = np.linalg.svd(whitened / col, full_matrices=False)
+    tiny = np.finfo(float).eps * sv[0] * max(whitened.shape)
     inv_sv2 = 1.0 / np.maximum(sv, tiny) ** 2
-    cov = noise**2 * ((vt.T * inv_sv2) @ vt) / np.outer(col, col)
+    cov = ((vt.T * inv_sv2) @ vt) / np.outer(col, col)
     condition = float(sv[0] / max(sv[-1], tiny))
     sig = np.sqrt(np.diag(cov))
     corr = cov / np.outer(sig, sig)
@@ -533,7 +545,11 @@ def locate(times_s, zenith_deg, azimuth_deg, *, altitude_m: float = 0.0, atmosph
     m_km, n_km = radii_of_curvature_km(lat)
     north_sigma = float(m_km * math.radians(sig[0]))
     east_sigma = float(n_km * math.cos(math.radians(lat)) * math.radians(sig[1]))
-    warnings = _identifiability_warnings(names, sig, corr, condition, ellipse, t, level == "fit", rms, sigma_deg)
+    warnings = _identifiability_warnings(names, sig, corr, condition, ellipse, t, level == "fit" and not prior, rms,
+                                         sigma_deg)
+    if best.status <= 0:
+        warnings.insert(0, f"the least squares stopped at its limit of {best.nfev} evaluations before converging: "
+                           "the fix is not to be trusted (a better starting site, or the level given)")
     if prior:
         warnings.append(f"the level is known to ±{level_sd_deg:g}° (1σ): the position's uncertainty includes it "
                         f"({ellipse.semi_major_km:.3g} km); a tilt moves the site by about 111 km per degree")

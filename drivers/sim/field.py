@@ -75,19 +75,10 @@ class FieldWorld(SimWorld):
 
     def occlusion(self) -> tuple[float, float, float] | None:
         state = self.clouds()
-        if state.edge_offset_deg >= SUN_DIAMETER_DEG:
+        if state.edge_offset_deg >= SUN_DIAMETER_DEG / 2:  # the edge misses the disc
             return None
         offset = max(state.edge_offset_deg, -SUN_DIAMETER_DEG)  # wholly covered: any edge beyond the disc
         return (round(offset, 6), round(state.edge_angle_deg, 3), state.cloud_transmission)
-
-
-@dataclass(frozen=True)
-class FieldTruth:
-    """What a simulated field run really was (for tests and for the simulated data's header)."""
-
-    sky: SimulatedSky
-    mount: SimulatedMount
-    start_utc_s: float
 
 
 def field_world(sky: SimulatedSky, mount: SimulatedMount, start_utc_s: float, *, base: SimWorld | None = None,

@@ -73,7 +73,8 @@ class CloudBank:
     centre for `duration_s`, and it moves at `speed_deg_s` along `direction_deg` (the direction, around the
     Sun in the sensor's tangent frame, it comes *from*: the covered side while it arrives).
 
-    Times are UTC seconds since the Unix epoch."""
+    Times are UTC seconds since the Unix epoch. A bank is wider than the Sun (its edges cross the disc one at a
+    time: ``duration_s × speed_deg_s`` at least the disc's diameter)."""
 
     start_s: float
     duration_s: float
@@ -81,6 +82,11 @@ class CloudBank:
     direction_deg: float = 0.0
     transmission: float = 0.0  # through the cloud
     aureole: float = 0.05  # halo while the cloud is near the Sun
+
+    def __post_init__(self) -> None:
+        if not self.speed_deg_s > 0 or self.duration_s * self.speed_deg_s < SUN_DIAMETER_DEG:
+            raise ValueError(f"a cloud bank is wider than the Sun's {SUN_DIAMETER_DEG}° disc: duration × speed is "
+                             f"{self.duration_s * self.speed_deg_s:.3g}°")
 
     def state(self, t_s: float) -> CloudState | None:
         """The bank's edge over the disc at `t_s` (None when the bank is far from the Sun)."""
@@ -178,10 +184,15 @@ def random_clouds(rng: np.random.Generator, start_s: float, end_s: float, *, ban
     end_s = max(end_s, start_s)  # a run may end before the interval
     n = rng.poisson(banks_per_hour * (end_s - start_s) / 3600.0)
     starts = np.sort(rng.uniform(start_s, end_s, n))
-    return tuple(CloudBank(start_s=float(t), duration_s=float(rng.exponential(mean_duration_s)),
-                           speed_deg_s=float(rng.uniform(0.001, 0.004)), direction_deg=float(rng.uniform(0, 360)),
-                           transmission=float(rng.uniform(*transmission_range)), aureole=float(rng.uniform(0.01, 0.1)))
-                 for t in starts)
+    banks = []
+    for t in starts:
+        speed = float(rng.uniform(0.001, 0.004))
+        duration = max(float(rng.exponential(mean_duration_s)), 1.5 * SUN_DIAMETER_DEG / speed)  # wider than the Sun
+        banks.append(CloudBank(start_s=float(t), duration_s=duration, speed_deg_s=speed,
+                               direction_deg=float(rng.uniform(0, 360)),
+                               transmission=float(rng.uniform(*transmission_range)),
+                               aureole=float(rng.uniform(0.01, 0.1))))
+    return tuple(banks)
 
 
 def _rodrigues(axis: np.ndarray, angle_deg: float) -> np.ndarray:

@@ -104,3 +104,12 @@ def test_random_clouds_over_an_interval_that_ends_before_it_starts_are_none():
     from drivers.sim.sky import random_clouds
 
     assert random_clouds(np.random.default_rng(0), 100.0, 50.0, banks_per_hour=60) == ()
+
+
+def test_a_cloud_bank_narrower_than_the_sun_is_refused_and_random_banks_are_wider():
+    with pytest.raises(ValueError, match="wider than the Sun"):
+        CloudBank(start_s=0.0, duration_s=100.0, speed_deg_s=0.002)  # 0.2°: both edges on the disc at once
+    from drivers.sim.sky import random_clouds
+
+    banks = random_clouds(np.random.default_rng(1), 0.0, 36000.0, banks_per_hour=30, mean_duration_s=60.0)
+    assert len(banks) > 100 and all(b.duration_s * b.speed_deg_s >= SUN_DIAMETER_DEG for b in banks)

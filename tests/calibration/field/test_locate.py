@@ -157,6 +157,33 @@ def test_level_fitted_is_not_identifiable_over_two_hours():
     assert given.error_km(PISEK.latitude_deg, PISEK.longitude_deg)[2] < 1.0
 
 
+@pytest.mark.parametrize("sigma_deg", [0.01, 0.003])
+def test_a_stated_level_uncertainty_enters_the_site_uncertainty(sigma_deg):
+    """An inclinometer's reading with its σ (level_sd_deg): the level is fitted, held to the reading by a Gaussian
+    prior, and the site's uncertainty includes the level's — about 111 km per degree of tilt, since the track
+    trades a tilt for a shift of the site. The inclinometer here is 0.05° off in pitch and says ±0.05°: the fix
+    misses by ~5.6 km, its 1σ is ~5.6 km (the level given as exact claims 0.5 km and misses by 10σ). (On
+    noise-free directions the exact model finds the level itself, through refraction, and the prior barely
+    matters.)"""
+    t = track_times(step_s=60.0)
+    th, ph = readings(PISEK_SKY, LEVEL, t, sigma_deg, np.random.default_rng(11))
+    reading = Mount(0.0, 0.0, 0.05)  # what the inclinometer said
+    fix = locate(t, th, ph, altitude_m=PISEK.altitude_m, atmosphere=ATM, mount=reading, level_sd_deg=0.05)
+    exact = locate(t, th, ph, altitude_m=PISEK.altitude_m, atmosphere=ATM, mount=reading)
+    dist = fix.error_km(PISEK.latitude_deg, PISEK.longitude_deg)[2]
+    dist_exact = exact.error_km(PISEK.latitude_deg, PISEK.longitude_deg)[2]
+    print(f"\nlevel ±0.05° (noise {sigma_deg}°): error {dist:.1f} km, 1σ {fix.north_sigma_km:.1f} × "
+          f"{fix.east_sigma_km:.1f} km, roll ±{fix.sigma_deg['roll']:.3f}°; level as exact: error {dist_exact:.1f} km,"
+          f" 1σ {exact.ellipse.semi_major_km:.2f} km")
+    assert fix.parameters == ("latitude", "longitude", "heading", "roll", "pitch")
+    assert fix.sigma_deg["roll"] == pytest.approx(0.05, rel=0.1)
+    assert fix.sigma_deg["pitch"] == pytest.approx(0.05, rel=0.1)
+    assert fix.ellipse.semi_major_km == pytest.approx(111.2 * 0.05, rel=0.15)
+    assert dist < 3 * fix.ellipse.semi_major_km
+    assert dist_exact > 3 * exact.ellipse.semi_major_km  # stated as exact, the same reading is overconfident
+    assert any("known to ±0.05°" in w for w in fix.warnings)
+
+
 def test_three_points_with_known_level_give_a_usable_fix():
     t = track_times(step_s=10.0)
     idx = [72, 360, 648]  # 10 / 50 / 90 % of the track, as seed 001 used
