@@ -34,7 +34,7 @@ import json
 import math
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from calibration.design import DEFAULT_BENCH, DEFAULT_SENSOR, BenchGeometry, SensorDesign
 from drivers.sim.bench import SimBenchConfig
@@ -48,7 +48,10 @@ from .yamlfile import read_yaml
 SIM_URL = "sim"
 TABLE_KINDS = ("apt", "smc100", "lx200", "manual")
 SOURCE_KINDS = ("xenon", "led")
-SENSOR_KINDS = ("cmos", "qd", "camera")  # the first two can be simulated (simulation.family)
+SENSOR_KINDS = ("cmos", "qd", "camera")
+#: The sensor kinds a simulated bench can simulate (its ``simulation.family``): every kind (the camera in-process,
+#: drivers/sim/camera.py).
+SIMULATED_SENSOR_KINDS = SENSOR_KINDS
 # Soft limits [°] of a seed 003 run: azimuth sweeps a full turn from either side of zero, the zenith stage
 # reaches past the sensor's 60° half field of view and a little below normal incidence.
 DEFAULT_AZIMUTH_LIMITS_DEG = (-180.0, 360.0)
@@ -284,11 +287,23 @@ class CmosSensorConfig(_Strict):
 
 
 class CameraSensorConfig(_Strict):
-    """A camera opened by OpenCV: device index, device path, video file or image-sequence pattern."""
+    """A camera opened by OpenCV: device index, device path, video file or image-sequence pattern; on a simulated
+    bench, no source (or ``sim``) is the simulated camera (``simulation.camera``, in-process: drivers/sim/camera.py)."""
 
     kind: Literal["camera"] = "camera"
-    source: int | str
+    source: int | str | None = None
     exposure_ms: float | None = Field(None, gt=0)
+
+    @field_validator("source")
+    @classmethod
+    def _source(cls, value):
+        if isinstance(value, str):
+            value = value.strip()
+            if not value:
+                raise ValueError("empty source: omit it (or write 'sim') for the simulated camera")
+            if value == SIM_URL:
+                return None  # one spelling for "simulated", as for a URL
+        return value
 
 
 class QdSensorConfig(_Strict):
@@ -408,7 +423,7 @@ class BenchFile(_Strict):
             return data  # the validation proper names the bad section
         # each simulated kind follows the device's, and the other way round (the sensor's: the simulated family)
         for role, sim_key, kinds in (("table", "table", TABLE_KINDS[:3]), ("source", "source", SOURCE_KINDS),
-                                     ("sensor", "family", SENSOR_KINDS[:2])):
+                                     ("sensor", "family", SIMULATED_SENSOR_KINDS)):
             device = devices.get(role)
             device = {} if device is None else device
             if not isinstance(device, dict):
@@ -443,9 +458,10 @@ class BenchFile(_Strict):
                 problems.append((("devices", "table", "kind"), f"{table.kind!r} does not match simulation.table "
                                                                f"{self.simulation.table!r}"))
             sensor = self.devices.sensor
-            if sensor.kind in SENSOR_KINDS[:2] and sensor.kind != self.simulation.family:
+            if sensor.kind in SIMULATED_SENSOR_KINDS and sensor.kind != self.simulation.family:
                 problems.append((("devices", "sensor", "kind"), f"{sensor.kind!r} does not match simulation.family "
-                                                                f"{self.simulation.family!r}"))
+                                                                f"{self.simulation.family!r} (the simulated sensor; "
+                                                                "a simulated bench simulates its own sensor's kind)"))
             if source.kind != self.simulation.source:
                 problems.append((("devices", "source", "kind"), f"{source.kind!r} does not match simulation.source "
                                                                 f"{self.simulation.source!r}"))
@@ -455,7 +471,8 @@ class BenchFile(_Strict):
                 # the hint once: a bare `simulation:` in YAML is null, which means "no simulation"
                 hint = (" ('sim' or no URL needs a simulation: section; a bare `simulation:` counts as none, "
                         "`simulation: {}` is the default one)") if i == 0 else ""
-                problems.append((loc, f"a URL is needed: the file has no simulation{hint}"))
+                what = "a source (an OpenCV device index, path or file)" if loc[-1] == "source" else "a URL"
+                problems.append((loc, f"{what} is needed: the file has no simulation{hint}"))
         if problems:
             raise _FieldProblems(problems)
         return self
@@ -476,6 +493,8 @@ class BenchFile(_Strict):
             out.append((("devices", "source", "url"), source.url))
         if self.devices.sensor.kind in ("cmos", "qd"):
             out.append((("devices", "sensor", "url"), self.devices.sensor.url))
+        else:
+            out.append((("devices", "sensor", "source"), self.devices.sensor.source))
         return out
 
     def bench_geometry(self) -> BenchGeometry:

@@ -220,6 +220,34 @@ class QdPhysicalProcedure(_Strict):
         return k * k + self.check_directions + len(self.dark.temperatures_c)
 
 
+#: The camera family's fits (one: OpenCV's camera model, calibration.camera)
+CAMERA_METHODS = ("opencv",)
+#: The simulated webcam's design (drivers/sim/camera_optics.py: f = 2.4 mm on 3 µm pixels, 800 px, on 640×480):
+#: a horizontal field of view of 2·atan(320/800)
+CAMERA_DESIGN_FOV_DEG = 43.6
+
+
+class CameraGridProcedure(_Strict):
+    """The camera sun sensor's bench calibration (seed 001 digest §7 item 4): zenith rings × azimuths over the whole
+    frame out to its corners (:func:`calibration.camera.camera_grid` on the design camera), each set through the
+    table's kinematics, `repeats` frames each, after an auto-exposure at the boresight that puts the Sun's peak at
+    `auto_exposure.target_peak_fraction` of full scale (60–70 % by default)."""
+
+    horizontal_fov_deg: float = Field(CAMERA_DESIGN_FOV_DEG, gt=1, lt=170)  # the design's, for the grid
+    width_px: int = Field(640, ge=16, le=8192)
+    height_px: int = Field(480, ge=16, le=8192)
+    rings: int = Field(8, ge=3, le=40)  # zenith rings besides the boresight
+    azimuths: int = Field(16, ge=4, le=72)  # equally spaced azimuths per ring (the frame's corners are added)
+    margin_radii: float = Field(2.0, ge=0.5, le=20)  # the spots stay this many disc radii inside the frame
+    repeats: int = Field(2, ge=1, le=100)
+    auto_exposure: AutoExposure = AutoExposure(start_ms=2.0, target_peak_fraction=0.65, tolerance=0.08,
+                                               min_ms=0.1, max_ms=500.0)
+
+    def points(self) -> int:
+        """The grid's directions at most: the boresight and every ring at every azimuth and corner azimuth."""
+        return 1 + self.rings * (self.azimuths + 4)
+
+
 class Alignment(_Strict):
     """Caliper readings of the bench alignment (seed 003 §4.1), checked before anything moves.
 
@@ -238,7 +266,7 @@ class Campaign(_Strict):
     """A campaign: a procedure run on one sensor or on a fleet (a flight batch is ten)."""
 
     name: str = Field(min_length=1)
-    plan: Literal["seed003", "grid", "physical", "qd-grid", "qd-physical", "qd-dark"] = "seed003"
+    plan: Literal["seed003", "grid", "physical", "qd-grid", "qd-physical", "qd-dark", "camera-grid"] = "seed003"
     operator: str = "unknown"
     sensors: tuple[str, ...] = Field(("SIM-0001",), min_length=1, max_length=MAX_SENSORS)
     frames: Literal["roi", "full", "none"] = "roi"
@@ -248,6 +276,7 @@ class Campaign(_Strict):
     qd_grid: QdGridProcedure = QdGridProcedure()
     qd_physical: QdPhysicalProcedure = QdPhysicalProcedure()
     qd_dark: QdDarkSweep = QdDarkSweep()
+    camera_grid: CameraGridProcedure = CameraGridProcedure()
     alignment: Alignment | None = None
     methods: tuple[str, ...] | None = None  # the fits at the run's end; None: every method of the sensor family
 
@@ -256,7 +285,8 @@ class Campaign(_Strict):
     def _methods(cls, v, info):
         if v is not None:
             plan = info.data.get("plan", "seed003")
-            known = QD_METHODS if plan.startswith("qd-") else tuple(METHODS)
+            known = (QD_METHODS if plan.startswith("qd-") else CAMERA_METHODS if plan.startswith("camera-")
+                     else tuple(METHODS))
             unknown = [m for m in v if m not in known]
             if unknown:
                 raise ValueError(f"unknown method(s) {unknown}; known for the {plan} plan: {list(known)}")
@@ -290,6 +320,8 @@ class Campaign(_Strict):
             return self.qd_physical.points()
         if self.plan == "qd-dark":
             return len(self.qd_dark.temperatures_c)
+        if self.plan == "camera-grid":
+            return self.camera_grid.points()
         return self.physical.max_points
 
 

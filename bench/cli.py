@@ -26,6 +26,13 @@ from calibration.stage_geometry import GeometryPrior
 from calibration.synthetic import EXAMPLE_BUILD, synthetic_bench_data
 
 from .benchfile import BenchFile, BenchFileError, load_bench_file
+from .camera_datafile import (
+    camera_calibration_document,
+    camera_header_from_document,
+    is_camera_document,
+    read_camera_calibration,
+    read_camera_frames,
+)
 from .cli_common import err, fmt, metrics_table, out, qd_metrics_table, user_errors
 from .datafile import (
     DataFileError,
@@ -325,6 +332,87 @@ def fit_qd(
         out.print(f"C header written to {escape(str(header))}")
 
 
+def camera_accuracy_table(calibration) -> Table:
+    """A camera calibration's figures: held out by whole zenith rings and by whole azimuths (each left out, the
+    model refitted without it and its spots predicted), and the fit's at the nodes."""
+    table = Table(title="Accuracy [°]: held out (whole zenith rings, whole azimuths left out) and at the nodes",
+                  title_justify="left")
+    for name in ("scheme", "groups", "spots", "RMS", "max"):
+        table.add_column(name, justify="left" if name == "scheme" else "right")
+    held = calibration.held_out
+    if held is not None:
+        for scheme in (held.rings, held.azimuths):
+            worst = " *" if scheme is held.worst else ""
+            table.add_row(f"{scheme.name} out{worst}", str(len(scheme.groups)), str(len(scheme.errors_deg)),
+                          fmt(scheme.rms_deg, 4), fmt(scheme.max_deg, 4))
+    fit = calibration.fit
+    table.add_row("fit (at the nodes)", "—", str(len(fit.residual_deg)), fmt(fit.rms_deg, 4), fmt(fit.max_deg, 4))
+    table.caption = "* = the worse held-out scheme (the calibration's held-out figure)"
+    table.caption_justify = "left"
+    return table
+
+
+def camera_model_table(calibration) -> Table:
+    """The fitted camera model (OpenCV's intrinsics, distortion and the rotation body → camera), each ± 1σ."""
+    table = Table(title="Camera model (OpenCV): fitted parameters", title_justify="left")
+    for name in ("parameter", "fitted", "± 1σ"):
+        table.add_column(name, justify="left" if name == "parameter" else "right")
+    model, sigma = calibration.model, calibration.fit.sigma
+    values = {**{k: getattr(model, k) for k in ("fx_px", "fy_px", "cx_px", "cy_px", "k1", "k2", "p1", "p2", "k3")},
+              **dict(zip(("rot_x_deg", "rot_y_deg", "rot_z_deg"), model.rotation_deg))}
+    for name, value in values.items():
+        sd = sigma.get(name)
+        table.add_row(name, f"{value:.6g}", "fixed" if sd is None else f"{sd:.3g}")
+    return table
+
+
+@fit_app.command("camera")
+@user_errors
+def fit_camera(
+    data_csv: Path = typer.Argument(..., help="Camera bench data CSV (see the README)."),
+    output: Optional[Path] = typer.Option(None, "--output", "-o", help="Write the calibration JSON here."),
+    header: Optional[Path] = typer.Option(None, "--header", help="Also write a C header for the sensor's processor."),
+    sensor: Optional[str] = typer.Option(None, "--sensor", help="Fit this sensor_id of a multi-sensor file."),
+    width_px: Optional[int] = typer.Option(None, help="Frame width [px] (default: the CSV's '# width_px:' comment, "
+                                                      "else 640)."),
+    height_px: Optional[int] = typer.Option(None, help="Frame height [px] (default: '# height_px:', else 480)."),
+) -> None:
+    """Fit a camera sun sensor's calibration (seed 001): OpenCV's camera model and its rotation against the body
+    frame, scored held out by whole zenith rings and by whole azimuths."""
+    from calibration.camera import calibrate_camera
+
+    frames = read_camera_frames(data_csv, sensor_id=sensor, width_px=width_px, height_px=height_px)
+    data = frames.data
+    try:
+        with err.status("fitting the camera model and leaving rings and azimuths out…"):
+            calibration = calibrate_camera(data)
+    except CalibrationError as exc:
+        raise DataFileError(data_csv, str(exc), column=getattr(exc, "column", None)) from None
+    out.print(camera_accuracy_table(calibration))
+    out.print(camera_model_table(calibration))
+    scatter, dof = data.repeat_scatter_px()
+    fit = calibration.fit
+    out.print(f"{len(data)} spots at {len(np.unique(np.round(np.c_[data.zenith_deg, data.azimuth_deg], 6), axis=0))}"
+              f" directions; repeat scatter " + (f"{scatter:.4f} px per axis" if dof else "unknown (no repeats)")
+              + f"; fit residual {fit.rms_px:.4f} px; χ²/dof = {fmt(fit.reduced_chi2, 2)}", highlight=False)
+    for w in calibration.warnings:
+        out.print(f"[bold yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
+    held = calibration.held_out
+    out.print(f"{len(data)} spots from {escape(str(data_csv))}" + (f" (sensor {escape(data.sensor_id)})"
+                                                                  if data.sensor_id else "")
+              + f", frame {data.width_px}×{data.height_px} px"
+              + ("" if held is None else f"; held out RMS {held.rms_deg:.4f}° ({held.worst.name} left out), max "
+                                         f"{held.max_deg:.4f}°"), highlight=False)
+    document = camera_calibration_document(calibration, source=str(data_csv), software=f"sunbench {_version()}")
+    text = camera_header_from_document(document) if header else None  # a header that cannot be written: no file
+    if output:
+        write_calibration(output, document)
+        out.print(f"calibration written to {escape(str(output))}")
+    if header:
+        _write_text(header, text)
+        out.print(f"C header written to {escape(str(header))}")
+
+
 def _write_text(path: Path, text: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
@@ -334,20 +422,37 @@ def _write_text(path: Path, text: str) -> None:
 @user_errors
 def apply_calibration(
     calibration_json: Path = typer.Argument(..., help="Calibration JSON written by `sunbench fit`."),
-    spots_csv: Path = typer.Argument(..., help="CSV with x_px, y_px columns (a QD calibration: i1_a … i4_a, "
-                                               "temperature_c)."),
+    spots_csv: Path = typer.Argument(..., help="CSV with x_px, y_px columns (a CMOS or camera calibration; a QD "
+                                               "calibration: i1_a … i4_a, temperature_c)."),
     output: Path = typer.Option(..., "--output", "-o", help="Output CSV: the input columns + zenith_deg, azimuth_deg "
                                                             "(QD: alpha_deg, beta_deg first, error_deg last)."),
 ) -> None:
     """Turn spot centres (or a QD sensor's currents) into sun directions with a fitted calibration."""
-    if is_qd_document(load_calibration_json(calibration_json)):
+    document = load_calibration_json(calibration_json)
+    if is_qd_document(document):
         _apply_qd(calibration_json, spots_csv, output)
+        return
+    if is_camera_document(document):
+        _apply_camera(calibration_json, spots_csv, output)
         return
     calibration, _ = read_calibration(calibration_json)
     table, x, y = read_spots_csv(spots_csv)
     zenith, azimuth = calibration.apply(x, y)
     write_applied_csv(output, table, zenith, azimuth)
     out.print(f"{len(x)} directions written to {escape(str(output))} (method {calibration.method})")
+
+
+def _apply_camera(calibration_json: Path, spots_csv: Path, output: Path) -> None:
+    """`apply` with a camera calibration: each row's spot through OpenCV's model to its zenith and azimuth in the
+    body frame (seed 001 eqs. 4–7 with the calibrated camera)."""
+    from calibration.camera import zenith_azimuth
+
+    model, document = read_camera_calibration(calibration_json)
+    table, x, y = read_spots_csv(spots_csv)
+    zenith, azimuth = zenith_azimuth(model, np.column_stack([x, y]))
+    write_applied_csv(output, table, zenith, azimuth)
+    out.print(f"{len(x)} directions written to {escape(str(output))} (camera model of "
+              f"{escape(str(document.get('sensor_id') or 'an unnamed sensor'))})", highlight=False)
 
 
 def _apply_qd(calibration_json: Path, readings_csv: Path, output: Path) -> None:
@@ -385,8 +490,11 @@ def export_header(
 ) -> None:
     """Export a calibration as a C header with `sunbench_sun_direction()` (QD: `sunbench_qd_sun_direction()`)
     for the sensor's MCU."""
-    if is_qd_document(load_calibration_json(calibration_json)):
+    document = load_calibration_json(calibration_json)
+    if is_qd_document(document):
         text = qd_header_from_document(read_qd_calibration(calibration_json))
+    elif is_camera_document(document):
+        text = camera_header_from_document(read_camera_calibration(calibration_json)[1])
     else:
         calibration, document = read_calibration(calibration_json)
         text = header_from_document(document, calibration)
@@ -504,8 +612,9 @@ def serve_simulators(
         if pty:
             from drivers.sim.pty_bridge import PtyBridge
             bridges = {role: PtyBridge(device).start() for role, device in bench.devices.items()}
-        out.print(f"simulated bench: {sim.table} table, {sim.source} source, {sim.axis_order}, sensor "
-                  f"{sim.sensor.serial}, time scale {bench.time_scale:g}", highlight=False)
+        serial = {"qd": sim.qd.serial, "camera": sim.camera.serial}.get(sim.family, sim.sensor.serial)
+        out.print(f"simulated bench: {sim.table} table, {sim.source} source, {sim.axis_order}, {sim.family} sensor "
+                  f"{serial}, time scale {bench.time_scale:g}", highlight=False)
         for role, url in server.urls.items():
             print(f"{role:14s} {url}", flush=True)  # `role url`: what scripts parse
             path = bridges[role].path if role in bridges else None
@@ -514,6 +623,9 @@ def serve_simulators(
             kind = sim.table if role.startswith("table") else role
             for line in client_hints(kind, url, path):
                 print(f"{'':15s}{line}", flush=True)
+        if bench.camera is not None:
+            print("(the simulated camera is in-process only, served on no port: a USB camera's wire is UVC, which the "
+                  "kernel and OpenCV own; `sunbench run` and `serve` with this bench file use it)", flush=True)
         print("serving; Ctrl-C to stop", flush=True)
         while True:
             time.sleep(0.5)

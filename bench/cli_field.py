@@ -83,7 +83,9 @@ def simulate(
     seed: int = typer.Option(3, "--seed", help="Seed of the clouds, the compass and the sensor's noise."),
     truth: Optional[Path] = typer.Option(None, "--truth", help="Also write what the field really was (JSON)."),
 ) -> None:
-    """Record a simulated field day of a simulated sensor through its driver (the bench's CMOS module)."""
+    """Record a simulated field day of a simulated sensor (the bench's CMOS module through its driver, or its camera);
+    the header says what an operator would know: the site, the mount's level by an inclinometer (to 0.1°) and a
+    compass heading."""
     from drivers.sim.field import field_world
     from drivers.sim.sky import SimulatedMount, SimulatedSky
 
@@ -97,30 +99,34 @@ def simulate(
     sky = SimulatedSky(site.latitude_deg, site.longitude_deg, site.altitude_m, pressure_hpa=pressure,
                        temperature_c=temperature, delta_t_s=69.0, haze=haze, clouds=banks)
     mount = SimulatedMount(heading, roll, pitch)
-    base, family = sensor_world(bench, serial)
+    base, family, sensor_truth = sensor_world(bench, serial)
     world = field_world(sky, mount, start_s, base=base)
     offsets = np.arange(0.0, hours * 3600.0 + 1e-9, interval)
-    with field_sensor(family, world) as (sensor, read, full_scale):
+    with field_sensor(family, world, sensor_truth) as (sensor, read, full_scale):
         with out.status("recording the simulated field") as status:
             record = record_field(sensor, read, offsets_s=offsets, start_utc_s=start_s,
                                   wait_until=world.clock.advance_to, full_scale_dn=full_scale,
                                   progress=lambda i, n: status.update(f"reading {i}/{n}"))
     compass = round(heading + rng.normal(0.0, compass_error)) if compass_error > 0 else heading
+    # the level as an inclinometer on the sensor reads it, to 0.1° (a level mount reads 0; a bracket tilted toward
+    # the Sun, as seed 001's camera sat, reads its tilt)
+    inclinometer = {"roll_deg": round(roll, 1) + 0.0, "pitch_deg": round(pitch, 1) + 0.0}
     from .field_datafile import write_field_csv
     write_field_csv(output, record.columns, metadata={
         "latitude_deg": site.latitude_deg, "longitude_deg": site.longitude_deg, "altitude_m": site.altitude_m,
-        "heading_deg": compass, "roll_deg": 0.0, "pitch_deg": 0.0, "pressure_hpa": pressure,
-        "temperature_c": temperature})
+        "heading_deg": compass, **inclinometer, "pressure_hpa": pressure, "temperature_c": temperature})
     ok = sum(s == "ok" for s in record.columns["status"])
+    level = ("is level" if not any(inclinometer.values()) else
+             f"is tilted roll {inclinometer['roll_deg']:g}°, pitch {inclinometer['pitch_deg']:g}° (an inclinometer)")
     out.print(f"{len(record)} readings ({ok} with a spot) written to {escape(str(output))}; the header says the "
-              f"mount is level and heads {compass:g}° (a compass), the truth is {heading:g}°, roll {roll:g}°, "
+              f"mount {level} and heads {compass:g}° (a compass), the truth is {heading:g}°, roll {roll:g}°, "
               f"pitch {pitch:g}°", highlight=False)
     if truth is not None:
         truth.parent.mkdir(parents=True, exist_ok=True)
         truth.write_text(json.dumps({
             "site": {"latitude_deg": lat, "longitude_deg": lon, "altitude_m": alt},
             "mount": {"heading_deg": heading, "roll_deg": roll, "pitch_deg": pitch},
-            "sensor": {"family": family, "serial": world.sensor.serial},
+            "sensor": {"family": family, "serial": (sensor_truth or world.sensor).serial},
             # per reading: the fraction of the disc behind a cloud, and the haze's and the cloud's transmission
             "clouds": [[round(c.covered_fraction(), 4), c.transmission, c.cloud_transmission]
                        for c in (world.sky.cloud_state(t) for t in start_s + offsets)],

@@ -252,6 +252,9 @@ def show_run(run_id: int = typer.Argument(..., min=1, max=MAX_ID), catalogue: Op
         if run.get("family") == "qd":
             _show_qd_calibrations(cat, run_id)
             return
+        if run.get("family") == "camera":
+            _show_camera_calibrations(cat, run_id)
+            return
         reports, chosen, document = [], None, {}
         metrics = lambda m, key: AccuracyMetrics(**m[key]) if m.get(key) else None  # noqa: E731
         for c in cat.calibrations(run_id):
@@ -291,6 +294,25 @@ def _show_qd_calibrations(cat, run_id: int) -> None:
         out.print(f"rejected: row {row.get('row_id')}: {escape(str(row.get('reason')))}", highlight=False)
     for warning in document.get("warnings") or []:
         out.print(f"[yellow]warning:[/] {escape(warning)}")
+
+
+def _show_camera_calibrations(cat, run_id: int) -> None:
+    """A camera run's calibration: the held-out figures by scheme and the fit's, and its warnings."""
+    def num(value, digits: int) -> str:
+        return fmt(float("nan") if value is None else value, digits)
+
+    for c in cat.calibrations(run_id):
+        m, document = c["metrics"], c["document"]
+        out.print(f"calibration {c['method']}{' (chosen)' if c['chosen'] else ''}: {m.get('n_points')} spots, fit RMS "
+                  f"{num(m.get('fit_rms_deg'), 4)}°, χ²/dof {num(m.get('reduced_chi2'), 2)}", highlight=False)
+        held = m.get("held_out") or {}
+        for name in ("rings", "azimuths"):
+            scheme = held.get(name) or {}
+            if scheme:
+                out.print(f"  held out, {name} left out: RMS {num(scheme.get('rms_deg'), 4)}°, max "
+                          f"{num(scheme.get('max_deg'), 4)}° over {scheme.get('n_points')} spots", highlight=False)
+        for warning in document.get("warnings") or []:
+            out.print(f"[bold yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
 
 
 def print_quality(document: dict) -> None:

@@ -138,6 +138,11 @@ def analyse_field(data: FieldData, calibration: dict | None = None, *, heading: 
     valid = data.ok & np.isfinite(zenith) & np.isfinite(azimuth)
     notes = list(setup.notes)
     cloudy = np.zeros(len(data), dtype=bool) if data.cloud is None else data.cloud.copy()
+    if data.spot_cloud is not None:  # the sensor's own flag (the camera's: its spot's shape), beside the operator's
+        shape = data.spot_cloud & valid
+        cloudy |= shape
+        notes.append(f"{int(shape.sum())} readings flagged as cloud by the sensor itself (spot_cloud: the spot's shape "
+                     "was not the clear disc's)")
     brightness = None
     if "peak_dn" in data.numbers and "exposure_ms" in data.numbers:
         try:

@@ -5,7 +5,7 @@ Format (README, "Field data CSV"):
   (a CMOS or camera sensor, turned into directions with a calibration) or its calibrated ``zenith_deg,
   azimuth_deg`` in the sensor frame — and optionally ``status`` (``ok`` or why the reading failed), ``peak_dn``,
   ``exposure_ms``, ``temperature_c`` and ``pressure_hpa`` (the air, per row), ``cloud`` (1 where the operator saw
-  cloud), ``sensor_id``;
+  cloud), ``spot_cloud`` (1 where the sensor's own spot showed a cloud: the camera's shape flag), ``sensor_id``;
 - header comments ``# key: value`` above the column names for the site and the mount: ``latitude_deg``,
   ``longitude_deg``, ``altitude_m``, ``heading_deg`` (azimuth of the sensor's +x axis, east of north),
   ``roll_deg``, ``pitch_deg`` (the mount's level, from an inclinometer), ``pressure_hpa``, ``temperature_c``,
@@ -60,6 +60,8 @@ class FieldData:
         Optional numeric columns present (:data:`OPTIONAL_NUMBERS`); NaN where a cell is empty.
     cloud : ndarray of bool or None
         The operator's cloud marks.
+    spot_cloud : ndarray of bool or None
+        The sensor's own cloud flag of each reading (the camera's, from its spot's shape); empty cells are False.
     metadata : dict of str to float
         The header comments (:data:`FIELD_KEYS`).
     sensor_id : str or None
@@ -77,6 +79,7 @@ class FieldData:
     cloud: np.ndarray | None = None
     metadata: dict = field(default_factory=dict)
     sensor_id: str | None = None
+    spot_cloud: np.ndarray | None = None
 
     @property
     def has_spots(self) -> bool:
@@ -116,10 +119,7 @@ def read_field_csv(path, *, text: str | None = None) -> FieldData:
     numbers = {c: table.numbers(c, allow_empty=np.ones(len(times), bool)) for c in OPTIONAL_NUMBERS if table.has(c)}
     if "pressure_hpa" in numbers:
         _check_range(table, "pressure_hpa", numbers["pressure_hpa"], 0.0, 1100.0)
-    cloud = None
-    if table.has("cloud"):
-        cloud = table.numbers("cloud", integer=True, allow_empty=np.ones(len(times), bool))
-        cloud = np.nan_to_num(cloud, nan=0.0) != 0
+    cloud, spot_cloud = (_flags(table, name) if table.has(name) else None for name in ("cloud", "spot_cloud"))
     sensor_id = None
     if table.has("sensor_id"):
         ids = sorted(set(table.texts("sensor_id")))
@@ -129,7 +129,13 @@ def read_field_csv(path, *, text: str | None = None) -> FieldData:
         sensor_id = ids[0] or None
     return FieldData(path=table.path, time_utc=times, t_s=t_s, ok=ok, x_px=spots.get("x_px"), y_px=spots.get("y_px"),
                      zenith_deg=directions.get("zenith_deg"), azimuth_deg=directions.get("azimuth_deg"),
-                     numbers=numbers, cloud=cloud, metadata=metadata, sensor_id=sensor_id)
+                     numbers=numbers, cloud=cloud, metadata=metadata, sensor_id=sensor_id, spot_cloud=spot_cloud)
+
+
+def _flags(table: CsvTable, column: str) -> np.ndarray:
+    """A 0/1 column (empty cells 0) as booleans: nonzero is set."""
+    values = table.numbers(column, integer=True, allow_empty=np.ones(len(table.rows), bool))
+    return np.nan_to_num(values, nan=0.0) != 0
 
 
 def _times(table: CsvTable, times: list[str]) -> np.ndarray:

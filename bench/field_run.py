@@ -25,7 +25,8 @@ EXPOSURE_TRIES = 5
 
 @dataclass
 class FieldRecord:
-    """What a field run recorded, by column (a field CSV's columns, :mod:`bench.field_datafile`)."""
+    """What a field run recorded, by column (a field CSV's columns, :mod:`bench.field_datafile`). A sensor whose
+    readings carry their own cloud flag (the camera's ``cloud``: the spot's shape) adds a ``spot_cloud`` column."""
 
     columns: dict = field(default_factory=lambda: {name: [] for name in (
         "time_utc", "x_px", "y_px", "peak_dn", "exposure_ms", "status")})
@@ -38,6 +39,11 @@ class FieldRecord:
         c["peak_dn"].append(float(reading.value("peak_dn", math.nan)))
         c["exposure_ms"].append(exposure_ms)
         c["status"].append(reading.status)
+        if "cloud" in reading.values and "spot_cloud" not in c:
+            c["spot_cloud"] = [None] * (len(c["time_utc"]) - 1)  # the rows before said nothing
+        if "spot_cloud" in c:
+            flag = reading.values.get("cloud")
+            c["spot_cloud"].append(None if flag is None or not reading.ok else bool(flag))
 
     def __len__(self) -> int:
         return len(self.columns["time_utc"])

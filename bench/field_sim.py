@@ -1,8 +1,8 @@
 """A simulated field day for `sunbench field simulate`: the sensor of a simulated bench taken outdoors.
 
 The sensor's truth (its build, its serial in a fleet) comes from the simulated bench file, so the field day is
-of the very sensor a bench run calibrated; its simulator is served at a ``sim://`` URL and read through the
-family's driver (:func:`field_sensor`).
+of the very sensor a bench run calibrated; a CMOS module's simulator is served at a ``sim://`` URL and read through
+the family's driver, the camera's is the in-process simulated camera (:func:`field_sensor`).
 """
 
 from __future__ import annotations
@@ -15,12 +15,12 @@ import numpy as np
 
 from calibration.errors import FieldDataError
 from drivers.sim.sky import CloudBank, random_clouds
-from drivers.sim.world import SimWorld, fleet_sensor
+from drivers.sim.world import SimWorld
 
 _names = itertools.count()
 
 #: Families a simulated field day can take outdoors (the image sensors, whose spot a sky can render).
-FIELD_FAMILIES = ("cmos",)
+FIELD_FAMILIES = ("cmos", "camera")
 
 
 def cloud_banks(spec: str, start_s: float, end_s: float, rng: np.random.Generator
@@ -46,9 +46,10 @@ def cloud_banks(spec: str, start_s: float, end_s: float, rng: np.random.Generato
     return random_clouds(rng, start_s, end_s, banks_per_hour=rate), ()
 
 
-def sensor_world(bench: Path | None, serial: str | None) -> tuple[SimWorld, str]:
+def sensor_world(bench: Path | None, serial: str | None) -> tuple[SimWorld, str, object]:
     """The world of the simulated bench in `bench` (default: the built-in simulated bench), with the sensor of
-    `serial` mounted, and its family."""
+    `serial` mounted, its family, and the truth of that family's simulator beyond the world's (the camera's lens and
+    detector; None for a CMOS module, whose build is the world's)."""
     from drivers.sim.bench import SimBench, SimBenchConfig
 
     from .benchfile import BenchFileError, load_bench_file
@@ -63,22 +64,30 @@ def sensor_world(bench: Path | None, serial: str | None) -> tuple[SimWorld, str]
     if config.family not in FIELD_FAMILIES:
         raise FieldDataError(f"a simulated field day takes the {', '.join(FIELD_FAMILIES)} family outdoors; "
                              f"this bench's sensor is of the {config.family!r} family")
-    world = SimBench(config, time_scale=0.0).world
+    sim = SimBench(config, time_scale=0.0)
     if serial is not None:
-        world.sensor = fleet_sensor(config.sensor.truth(), serial)
-    return world, config.family
+        sim.mount_sensor(serial)  # as the bench mounts a fleet's sensor (a CMOS module's build goes into the world)
+    return sim.world, config.family, None if sim.camera is None else sim.camera.truth
 
 
 @contextlib.contextmanager
-def field_sensor(family: str, world: SimWorld):
-    """The family's simulator on `world`, served at a ``sim://`` URL, and its driver connected to it: yields
-    ``(driver, read, full_scale_dn)`` (`read` is the family's reading function)."""
+def field_sensor(family: str, world: SimWorld, truth=None):
+    """The family's simulator on `world` and its driver: yields ``(driver, read, full_scale_dn)`` (`read` is the
+    family's reading function). A CMOS module is served at a ``sim://`` URL and read through its driver and wire
+    protocol; the camera is the in-process :class:`~drivers.sim.camera.SimulatedCamera` (of `truth`, a
+    :class:`~drivers.sim.camera.CameraTruth`), as on the bench (drivers/sim/camera.py says why)."""
     from drivers.sim import registry
 
     from .families import family as family_of
 
-    if family != "cmos":
+    if family not in FIELD_FAMILIES:
         raise FieldDataError(f"no simulated field for the {family!r} family")
+    if family == "camera":
+        from drivers.sim.camera import CameraTruth, SimulatedCamera
+
+        camera = SimulatedCamera(world, truth if truth is not None else CameraTruth())
+        yield camera, family_of("camera").read, float(camera.full_scale_dn)
+        return
     from drivers.cmos_sensor import CmosSunSensor
     from drivers.sim.cmos_sensor import CmosSensorSimulator
     from drivers.transport import open_port

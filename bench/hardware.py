@@ -6,6 +6,8 @@ a :class:`~drivers.interfaces.SunSimulator` and an :class:`~drivers.interfaces.I
 
 Simulated devices. When the file has a ``simulation:`` section, a :class:`~drivers.sim.bench.SimBench` is
 built and served in-process; a device without a URL (or ``url: sim``) is opened at its ``sim://`` URL. The
+simulated camera (``simulation.family: camera``, a camera sensor without a source) has no wire to open (a USB
+camera's is UVC in the kernel, :mod:`drivers.sim.camera`): the simulator itself is the bench's sensor. The
 sources of the simulated world measure their warm-up on the world's clock and use the simulated lamp's
 own warm time (:attr:`drivers.sim.lamp.LampSpec.warm_time_s`) instead of the file's ``warmup_s`` (which
 is for the real lamp): the simulated lamp completes its warm-up exactly at that simulated time (in instant
@@ -254,6 +256,10 @@ class _Connector:
     def sensor(self) -> ImageSensor | QuadrantSensor:
         config = self.file.devices.sensor
         if config.kind == "camera":
+            if config.source is None:
+                # the simulated camera: in-process, handed over as it is (no wire to open, drivers/sim/camera.py)
+                self.where["sensor"] = "the simulated camera (in-process)"
+                return self.sim.camera  # the file validated that the simulation's family is camera
             from drivers.usb_camera import UsbCamera  # OpenCV loads only for a camera bench
 
             with _connecting("sensor", str(config.source)):

@@ -292,7 +292,8 @@ def test_console_script(tmp_path, fitted):
     assert str(bad) in flat and "row 2 (line 3)" in flat and "'abc' is not a number" in flat
 
 
-COMMANDS = ("apply", "header", "demo", "sim", "run", "runs", "show", "resume", "export", "fleet", "serve", "fit")
+COMMANDS = ("apply", "header", "demo", "sim", "run", "runs", "show", "resume", "export", "fleet", "serve", "fit",
+            "field")
 
 
 def _listed_commands(help_text: str) -> list[str]:

@@ -202,6 +202,15 @@ def test_calibration_imports_only_numerics():
     assert not bad, "\n".join(bad)
 
 
+def test_the_camera_simulator_imports_no_calibration():
+    """The camera simulator's optics are its own (a lens polynomial in the field angle, a tilted detector), never
+    OpenCV's model that calibration/camera fits: it takes nothing of calibration/."""
+    paths = [ROOT / "drivers" / "sim" / "camera.py", ROOT / "drivers" / "sim" / "camera_optics.py"]
+    bad = [f"{_where(p)}:{line} imports {m}" for p in paths for m, line in _imported_modules(p)
+           if m.split(".")[0] == "calibration"]
+    assert not bad, "\n".join(bad)
+
+
 def test_the_qd_simulator_imports_no_calibration():
     """A simulator is its own physics (DESIGN.md "Sensor families"): the QD simulator does not even take its
     defaults from calibration/, so nothing of the fit can leak into the currents it makes."""
@@ -470,6 +479,20 @@ class FamilyParts:
 FAMILY_PARTS = {
     "cmos": FamilyParts("calibration/models", "drivers/sim/cmos_sensor.py"),
     "qd": FamilyParts("calibration/qd", "drivers/sim/qd_sensor.py"),
+    "camera": FamilyParts("calibration/camera", "drivers/sim/camera.py"),
+}
+
+#: Families whose simulator is not a WIRE_DRIVERS simulator, each named with the reason it stands (the rule holds
+#: for every other family). A listed family whose simulator became one fails
+#: `test_every_family_simulator_exception_is_still_needed`.
+FAMILY_SIMULATOR_EXCEPTIONS = {
+    "camera":
+        # A USB camera's wire is UVC, spoken by the kernel's V4L2 driver and read by OpenCV's VideoCapture
+        # (NOT_WIRE_DRIVERS: usb_camera.py); no protocol of ours runs on it, and a user-space simulator cannot sit
+        # on it without the v4l2loopback kernel module (a fake /dev/videoN). So the simulated camera is an
+        # in-process ImageSensor handed to the bench directly (bench/hardware.py), and the real driver is tested
+        # on its frames through an image sequence instead (tests/drivers/test_sim_camera.py).
+        "the camera's wire is UVC in the kernel (OpenCV owns it): the simulator is an in-process ImageSensor",
 }
 
 
@@ -496,9 +519,28 @@ def test_every_registered_family_has_a_descriptor_a_calibration_and_a_simulator(
             f"family {name!r}: its calibration {parts.calibration} is missing")
         assert importlib.util.find_spec(dotted) is not None, f"family {name!r}: {dotted} is not importable"
         assert (ROOT / parts.simulator).is_file(), f"family {name!r}: its simulator {parts.simulator} is missing"
+        if name in FAMILY_SIMULATOR_EXCEPTIONS:
+            continue  # named with its reason; checked below
         assert parts.simulator in simulators, (
             f"family {name!r}: {parts.simulator} serves no driver in WIRE_DRIVERS (a simulator speaks its "
             f"sensor's wire protocol)")
+
+
+def test_every_family_simulator_exception_is_still_needed():
+    """A family excepted from the wire-simulator rule has a row, a simulator that is indeed no WIRE_DRIVERS one,
+    and the simulator implements its sensor's driver interface in-process (an ImageSensor)."""
+    from drivers.interfaces import ImageSensor, QuadrantSensor
+
+    simulators = {w.simulator for w in WIRE_DRIVERS.values()}
+    for name, reason in FAMILY_SIMULATOR_EXCEPTIONS.items():
+        assert name in FAMILY_PARTS, f"FAMILY_SIMULATOR_EXCEPTIONS names {name!r}, which has no FAMILY_PARTS row"
+        simulator = FAMILY_PARTS[name].simulator
+        assert simulator not in simulators, (f"{simulator} is a WIRE_DRIVERS simulator now: drop {name!r} from "
+                                             f"FAMILY_SIMULATOR_EXCEPTIONS ({reason})")
+        module = importlib.import_module(simulator.removesuffix(".py").replace("/", "."))
+        interfaces = [c for c in vars(module).values() if isinstance(c, type) and c.__module__ == module.__name__
+                      and issubclass(c, (ImageSensor, QuadrantSensor))]
+        assert interfaces, f"{simulator} implements no sensor interface (drivers.interfaces) in-process"
 
 
 def _assert_tool_finds_nothing(tool: str, *args: str, timeout: float) -> None:

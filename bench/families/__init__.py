@@ -28,7 +28,7 @@ class Family:
     Attributes
     ----------
     name : str
-        "cmos", "qd" … (the bench file's ``devices.sensor.kind``, the catalogue's ``runs.family``).
+        "cmos", "qd", "camera" … (the bench file's ``devices.sensor.kind``, the catalogue's ``runs.family``).
     title : str
         For people ("CMOS pinhole sun sensor (seed 003)").
     descriptor : ReadingDescriptor
@@ -148,4 +148,4 @@ def table_mount(axis_order: str, geometry):
 def _load() -> None:
     # the families register themselves on import; imported here, late, because they import the bench modules
     # that import this registry
-    from . import cmos, qd  # noqa: F401
+    from . import camera, cmos, qd  # noqa: F401

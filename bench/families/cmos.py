@@ -102,5 +102,5 @@ FAMILY = register(Family(
     name="cmos", title="CMOS pinhole sun sensor (seed 003)", descriptor=DESCRIPTOR,
     plans=("seed003", "grid", "physical"), read=read, dry_reading=dry_reading, summary=summary, status=status,
     make_plan=make_plan, fit_run=fit_run, fit_inputs=fit_inputs, results_view="cmos",
-    export_csv=export_csv, c_header=c_header, sensor_kinds=("cmos", "camera"),
+    export_csv=export_csv, c_header=c_header, sensor_kinds=("cmos",),
     has_exposure=True))

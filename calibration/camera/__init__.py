@@ -20,7 +20,15 @@ from .fit import (
     held_out,
     initial_camera,
 )
-from .model import CameraModel, design_camera, project, ray_directions, rotation_matrix, zenith_azimuth
+from .model import (
+    CameraModel,
+    camera_from_document,
+    design_camera,
+    project,
+    ray_directions,
+    rotation_matrix,
+    zenith_azimuth,
+)
 from .spots import CLOUD_THRESHOLDS, CameraSpot, CloudThresholds, cloud_flag, detect_spot, luminance
 
 __all__ = [
@@ -35,6 +43,7 @@ __all__ = [
     "HeldOut",
     "HeldOutScheme",
     "calibrate_camera",
+    "camera_from_document",
     "camera_grid",
     "cloud_flag",
     "design_camera",

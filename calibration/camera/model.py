@@ -35,10 +35,17 @@ import numpy as np
 from ..errors import CalibrationFormatError
 from ..geometry import zenith_azimuth_from_vector
 
-__all__ = ["CameraModel", "design_camera", "project", "ray_directions", "rotation_matrix", "zenith_azimuth"]
+__all__ = ["CameraModel", "camera_from_document", "design_camera", "project", "ray_directions", "rotation_matrix",
+           "zenith_azimuth"]
 
 KIND = "camera"
 """Value of the ``"kind"`` marker in a serialised :class:`CameraModel`."""
+FAMILY = "camera"
+"""Value of the ``"family"`` tag of a camera calibration document."""
+DOCUMENT_FORMAT = "sunbench.calibration"
+"""Value of the ``"format"`` tag of a calibration document (every family's)."""
+DOCUMENT_VERSION = 1
+"""Version of the camera calibration document; bumped when the meaning of a field changes."""
 
 _FLOATS = ("fx_px", "fy_px", "cx_px", "cy_px", "k1", "k2", "p1", "p2", "k3")
 _INTS = ("width_px", "height_px")
@@ -166,6 +173,36 @@ class CameraModel:
             return cls(**values)
         except (TypeError, ValueError) as exc:
             raise CalibrationFormatError(f"camera model: invalid values ({exc})") from exc
+
+
+def camera_from_document(document) -> CameraModel:
+    """The camera model of a camera calibration document (``sunbench fit camera``, or a camera run's fit).
+
+    The document is ``{"format": "sunbench.calibration", "version": 1, "family": "camera", "kind": "camera",
+    "model": {CameraModel.to_dict()}, ...}``; a bare :meth:`CameraModel.to_dict` is taken as well.
+
+    Raises
+    ------
+    CalibrationFormatError
+        Not a mapping, another format, version or family, no model, or a bad model field (the message names it).
+    """
+    if not isinstance(document, dict):
+        raise CalibrationFormatError(f"camera calibration: expected a JSON object, got {type(document).__name__}")
+    if "model" not in document:
+        if document.get("kind") == KIND and "fx_px" in document:
+            return CameraModel.from_dict(document)  # a bare model
+        raise CalibrationFormatError("camera calibration: missing field `model` (the camera model)")
+    if document.get("format") is not None and document.get("format") != DOCUMENT_FORMAT:
+        raise CalibrationFormatError(f"camera calibration: field `format` must be {DOCUMENT_FORMAT!r}, got "
+                                     f"{document.get('format')!r}")
+    version = document.get("version")
+    if version is not None and version != DOCUMENT_VERSION:
+        raise CalibrationFormatError(f"camera calibration: version {version!r} is not supported (this sunbench "
+                                     f"reads version {DOCUMENT_VERSION})")
+    family = document.get("family")
+    if family is not None and family != FAMILY:
+        raise CalibrationFormatError(f"camera calibration: field `family` must be {FAMILY!r}, got {family!r}")
+    return CameraModel.from_dict(document["model"])
 
 
 def _is_number(value) -> bool:

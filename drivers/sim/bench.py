@@ -18,6 +18,7 @@ from calibration.design import DEFAULT_BENCH, DEFAULT_SENSOR, BenchGeometry, Sen
 
 from . import registry
 from .backdoor import BenchFaults
+from .camera import CameraSimConfig, CameraTruth, SimulatedCamera, camera_fleet_truth
 from .clock import SimClock
 from .lamp import LED, XENON
 from .motion import AxisSpec
@@ -145,13 +146,15 @@ class SimBenchConfig(_Strict):
 
     time_scale: float = Field(1.0, ge=0)
     seed: int = 0
-    family: Literal["cmos", "qd"] = "cmos"  # the sensor under test: CMOS pinhole (seed 003) or QD (seed 002)
+    # the sensor under test: CMOS pinhole (seed 003), QD (seed 002) or camera (seed 001)
+    family: Literal["cmos", "qd", "camera"] = "cmos"
     table: Literal["apt", "lx200", "smc100"] = "apt"
     axis_order: Literal["azimuth-on-zenith", "zenith-on-azimuth"] = "azimuth-on-zenith"
     source: Literal["xenon", "led"] = "xenon"
     geometry: GeometryConfig = GeometryConfig()
     sensor: SensorConfig = SensorConfig()
     qd: QdSensorConfig = QdSensorConfig()  # the QD module, used when `family` is qd
+    camera: CameraSimConfig = CameraSimConfig()  # the camera sun sensor, used when `family` is camera
     mount: MountConfig = MountConfig()
     azimuth_axis: AxisConfig = AxisConfig()
     zenith_axis: AxisConfig = AxisConfig(hard_limits_deg=(-95.0, 95.0))  # the defaults are examples/bench-sim.yaml
@@ -170,7 +173,11 @@ class SimBench:
     world : SimWorld
     devices : dict of str to SimDevice
         By role: ``table`` (LX200) or ``table-azimuth`` and ``table-zenith`` (APT, SMC100), ``lamp`` and
-        ``shutter`` (xenon) or ``led`` (LED), ``sensor``.
+        ``shutter`` (xenon) or ``led`` (LED), ``sensor`` (a CMOS or QD module): the devices served on a wire.
+    camera : SimulatedCamera or None
+        The camera sun sensor of a camera bench (``family: camera``): an in-process
+        :class:`~drivers.interfaces.ImageSensor`, not served on a wire (:mod:`drivers.sim.camera` says why);
+        the bench takes it as it is (:mod:`bench.hardware`).
     """
 
     def __init__(self, config: SimBenchConfig | None = None, *, time_scale: float | None = None):
@@ -181,6 +188,7 @@ class SimBench:
                               mount_tilt_x_deg=config.mount.tilt_x_deg, mount_tilt_y_deg=config.mount.tilt_y_deg,
                               lamp_spec=XENON if config.source == "xenon" else LED, seed=config.seed,
                               temperature_c=config.temperature_c, axis_order=config.axis_order)
+        self.camera = SimulatedCamera(self.world, config.camera.truth()) if config.family == "camera" else None
         self.devices = {**self._table(), **self._source(), **self._sensor()}
         self._registered: list[str] = []
 
@@ -224,11 +232,16 @@ class SimBench:
         """Put the bench in a named set-up (:data:`drivers.sim.backdoor.SETUPS`: ``normal``, ``lamp_fault`` …)."""
         self.faults.setup(name)
 
-    def mount_sensor(self, serial: str) -> SensorTruth | QdTruth:
+    def mount_sensor(self, serial: str) -> SensorTruth | QdTruth | CameraTruth:
         """Put the sensor of serial `serial` on the bench (what the operator does between the sensors of a
         fleet): the configured sensor for its own serial, any other built from its serial around it
         (:func:`~drivers.sim.world.fleet_sensor`; a QD module: :func:`~drivers.sim.qd_optics.qd_fleet_truth`,
-        mounted on the QD simulator, powered up fresh). The module then identifies itself with that serial."""
+        mounted on the QD simulator, powered up fresh; a camera: :func:`~drivers.sim.camera.camera_fleet_truth`).
+        The module then identifies itself with that serial."""
+        if self.camera is not None:
+            truth = camera_fleet_truth(self.config.camera.truth(), serial)
+            self.camera.mount(truth)
+            return truth
         if self.config.family == "qd":
             truth = qd_fleet_truth(self.config.qd.truth(), serial)
             self.devices["sensor"].mount(truth)
@@ -260,6 +273,8 @@ class SimBench:
         return {"led": ScpiSupplySimulator(self.world)}
 
     def _sensor(self) -> dict:
+        if self.config.family == "camera":
+            return {}  # the camera is in-process only (`camera`): no wire to serve
         if self.config.family == "qd":
             from .qd_sensor import QdSensorSimulator
             return {"sensor": QdSensorSimulator(self.world, self.config.qd)}

@@ -60,6 +60,20 @@ def test_kinds_follow_the_side_that_names_them():
     assert bench.devices.table.zenith_limits_deg == (-10.0, 70.0)
 
 
+def test_a_simulated_camera_bench_follows_either_side_and_a_real_camera_may_sit_on_it():
+    """Every sensor kind can be simulated: simulation.family camera gives a camera sensor with no source (the
+    simulated camera, in-process) and the other way round; a camera with a source on a simulated bench is a real
+    camera next to the simulated table and lamp."""
+    bench = parse_bench_file({"simulation": {"family": "camera"}})
+    assert bench.devices.sensor.kind == "camera" and bench.devices.sensor.source is None
+    bench = parse_bench_file({"simulation": {}, "devices": {"sensor": {"kind": "camera", "source": "sim"}}})
+    assert bench.simulation.family == "camera" and bench.devices.sensor.source is None
+    real = parse_bench_file({"simulation": {}, "devices": {"sensor": {"kind": "camera", "source": "/dev/video0"}}})
+    assert real.simulation.family == "camera" and real.devices.sensor.source == "/dev/video0"
+    with pytest.raises(BenchFileError, match=r"devices\.sensor\.kind: 'camera' does not match simulation\.family"):
+        parse_bench_file({"simulation": {"family": "cmos"}, "devices": {"sensor": {"kind": "camera"}}})
+
+
 def test_a_file_of_real_devices_uses_the_design_geometry(tmp_path):
     path = _write(tmp_path, """
 devices:
@@ -97,7 +111,10 @@ BAD = {
     "unknown key in interlocks": ("interlocks: {lamp_falt: true}\n", "interlocks.lamp_falt"),
     "LED current above its limit": ("simulation: {}\ndevices:\n  source: {kind: led, current_a: 2.0}\n",
                                     "devices.source.current_a"),
-    "camera without source": ("simulation: {}\ndevices:\n  sensor: {kind: camera}\n", "devices.sensor.source"),
+    "camera without source on a real bench": ("simulation: null\ndevices:\n  sensor: {kind: camera}\n",
+                                              "devices.sensor.source"),
+    "camera on a simulated QD bench": ("simulation: {family: qd}\ndevices:\n  sensor: {kind: camera, source: 0}\n",
+                                       "devices.sensor.kind"),
     "same SMC100 address on one line": (
         "devices:\n  table: {kind: smc100, azimuth: {url: /dev/ttyS0}, zenith: {url: /dev/ttyS0}}\n"
         "  source: {kind: led, url: /dev/ttyS1}\n  sensor: {url: /dev/ttyS2}\n", "devices.table.zenith.address"),

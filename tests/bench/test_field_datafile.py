@@ -66,3 +66,23 @@ def test_a_failed_reading_may_leave_its_cells_empty(tmp_path):
     data = read_field_csv(_write(tmp_path, "time_utc,x_px,y_px,status\n2019-09-29T04:00:00,,,NoSpotError\n"
                                            "2019-09-29T04:00:30,5,6,ok\n"))
     assert data.ok.tolist() == [False, True]
+
+
+def test_the_sensors_own_cloud_flag_is_read_apart_from_the_operators_and_counts_as_cloud(tmp_path):
+    """`spot_cloud` is the sensor's flag (the camera's, from its spot's shape), `cloud` the operator's mark; the
+    analysis leaves a reading either flags out of the clear statistics, and says how many the sensor flagged."""
+    from bench.field_analysis import analyse_field
+
+    data = read_field_csv(_write(tmp_path, "time_utc,zenith_deg,azimuth_deg,cloud,spot_cloud,status\n"
+                                           "2013-04-18T08:00:00,20,10,0,0,ok\n"
+                                           "2013-04-18T08:01:00,20,11,1,,ok\n"
+                                           "2013-04-18T08:02:00,20,12,,1,ok\n"
+                                           "2013-04-18T08:03:00,,,,1,NoSpotError\n"))
+    assert data.cloud.tolist() == [False, True, False, False]
+    assert data.spot_cloud.tolist() == [False, False, True, True]
+    analysis = analyse_field(data, None, do_compare=False)
+    assert analysis.cloudy.tolist() == [False, True, True, False]  # a reading without a spot is no cloud's
+    assert any("1 readings flagged as cloud by the sensor itself" in note for note in analysis.notes)
+    assert read_field_csv(_write(tmp_path, "time_utc,x_px,y_px\n2019-09-29T04:00:00,1,2\n")).spot_cloud is None
+    with pytest.raises(DataFileError, match=r"row 1.*spot_cloud.*whole number"):
+        read_field_csv(_write(tmp_path, "time_utc,x_px,y_px,spot_cloud\n2019-09-29T04:00:00,1,2,0.5\n"))

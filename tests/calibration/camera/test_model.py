@@ -8,6 +8,7 @@ import pytest
 
 from calibration.camera.model import (
     CameraModel,
+    camera_from_document,
     design_camera,
     project,
     ray_directions,
@@ -130,3 +131,17 @@ def test_missing_field_and_non_mapping_raise_a_typed_error():
         CameraModel.from_dict([1, 2, 3])
     with pytest.raises(CalibrationFormatError, match="unknown"):
         CameraModel.from_dict({**CAMERA.to_dict(), "k4": 0.0})
+
+
+def test_camera_from_document_reads_a_calibration_document_or_a_bare_model():
+    document = {"format": "sunbench.calibration", "version": 1, "family": "camera", "kind": "camera",
+                "method": "opencv", "model": CAMERA.to_dict(), "warnings": []}
+    assert camera_from_document(document) == CAMERA == camera_from_document(CAMERA.to_dict())
+    for change, words in (({"format": "other"}, "`format`"), ({"version": 2}, "version 2"),
+                          ({"family": "qd"}, "`family`"), ({"model": None}, "expected a JSON object")):
+        with pytest.raises(CalibrationFormatError, match=words):
+            camera_from_document({**document, **change})
+    with pytest.raises(CalibrationFormatError, match="missing field `model`"):
+        camera_from_document({k: v for k, v in document.items() if k != "model"})
+    with pytest.raises(CalibrationFormatError, match="JSON object"):
+        camera_from_document("camera")

@@ -1,0 +1,126 @@
+"""Export of a camera calibration as a C header for the sensor's processor.
+
+The header holds the OpenCV intrinsics (fx, fy, cx, cy), the distortion (k1, k2, p1, p2, k3) and the rotation
+body → camera as ``static const double``s, and a ``static inline`` function that turns a spot centre into the sun
+direction in the body frame as :func:`calibration.camera.model.zenith_azimuth` does: the distortion is inverted
+by Newton's method on OpenCV's polynomial (its analytic Jacobian, the same as the library's polish step), the
+undistorted ray turned into the body frame by Rᵀ. Doubles are printed with Python's shortest round-trip repr, so
+the C constants are the very same binary values; a test compiles the header and checks it against the model.
+
+References
+----------
+seed 001 eq. 4 (the ray through the lens centre) with the calibration the thesis leaves out (digest §7 item 4);
+OpenCV's camera model (``projectPoints``, ``undistortPoints``).
+"""
+
+from __future__ import annotations
+
+import re
+
+from ..export import _PRELUDE, c_array, c_double, comment_safe
+from .model import CameraModel, rotation_matrix
+
+#: Newton iterations at most, and the step [normalised image units] below which the inversion has converged
+#: (1e-14 is ~1e-11 px on an 800 px focal length).
+NEWTON_ITERATIONS = 30
+NEWTON_TOLERANCE = 1e-14
+
+_BODY = """\
+/* OpenCV's distortion of normalised coordinates (xn, yn) -> (xd, yd), and its Jacobian j = d(xd, yd)/d(xn, yn)
+   as {dxd/dxn, dxd/dyn, dyd/dxn, dyd/dyn}. */
+static inline void sbcam_distort(double xn, double yn, double *xd, double *yd, double j[4]) {
+    const double k1 = SBCAM_DIST[0], k2 = SBCAM_DIST[1], p1 = SBCAM_DIST[2], p2 = SBCAM_DIST[3], k3 = SBCAM_DIST[4];
+    double r2 = xn * xn + yn * yn;
+    double g = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+    double dg = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2);
+    *xd = xn * g + 2.0 * p1 * xn * yn + p2 * (r2 + 2.0 * xn * xn);
+    *yd = yn * g + p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn;
+    j[0] = g + 2.0 * xn * xn * dg + 2.0 * p1 * yn + 6.0 * p2 * xn;
+    j[1] = 2.0 * xn * yn * dg + 2.0 * p1 * xn + 2.0 * p2 * yn;
+    j[2] = j[1];
+    j[3] = g + 2.0 * yn * yn * dg + 6.0 * p1 * yn + 2.0 * p2 * xn;
+}
+
+/* Spot centre [px] -> sun direction in the body frame [deg] (zenith from the boresight +z, azimuth in [0, 360)).
+   Returns 0, or -1 when the distortion could not be inverted (a pixel far outside the calibrated field). */
+static inline int sunbench_sun_direction(double x_px, double y_px, double *zenith_deg, double *azimuth_deg) {
+    const double xd = (x_px - SBCAM_CX_PX) / SBCAM_FX_PX, yd = (y_px - SBCAM_CY_PX) / SBCAM_FY_PX;
+    double xn = xd, yn = yd;
+    int converged = 0;
+    for (int it = 0; it < SBCAM_NEWTON_ITERATIONS; ++it) {
+        double fx, fy, j[4];
+        sbcam_distort(xn, yn, &fx, &fy, j);
+        double ex = fx - xd, ey = fy - yd;
+        double det = j[0] * j[3] - j[1] * j[2];
+        if (!(det != 0.0)) break;
+        double dx = (j[3] * ex - j[1] * ey) / det, dy = (j[0] * ey - j[2] * ex) / det;
+        xn -= dx;
+        yn -= dy;
+        if (fabs(dx) < SBCAM_NEWTON_TOLERANCE && fabs(dy) < SBCAM_NEWTON_TOLERANCE) {
+            converged = 1;
+            break;
+        }
+    }
+    double norm = sqrt(xn * xn + yn * yn + 1.0);
+    double c0 = xn / norm, c1 = yn / norm, c2 = 1.0 / norm;          /* the ray in the camera frame */
+    double bx = SBCAM_R[0][0] * c0 + SBCAM_R[1][0] * c1 + SBCAM_R[2][0] * c2;  /* n_body = R^T cam */
+    double by = SBCAM_R[0][1] * c0 + SBCAM_R[1][1] * c1 + SBCAM_R[2][1] * c2;
+    double bz = SBCAM_R[0][2] * c0 + SBCAM_R[1][2] * c1 + SBCAM_R[2][2] * c2;
+    *zenith_deg = atan2(sqrt(bx * bx + by * by), bz) * SB_DEG;
+    *azimuth_deg = sb_wrap360(atan2(by, bx) * SB_DEG);
+    return converged && isfinite(*zenith_deg) ? 0 : -1;
+}
+"""
+
+
+def camera_c_header(model: CameraModel, *, sensor_id: str | None = None, provenance: dict | None = None) -> str:
+    """C header text of a camera model (module docstring).
+
+    Parameters
+    ----------
+    model : CameraModel
+    sensor_id : str, optional
+        Names the header's guard and its opening comment.
+    provenance : dict, optional
+        Short texts (source, date, held-out accuracy) for the opening comment.
+
+    Raises
+    ------
+    CalibrationError
+        A non-finite coefficient (no header is written for it).
+
+    References
+    ----------
+    seed 001 eq. 4; OpenCV's camera model.
+    """
+    r = rotation_matrix(model)
+    tag = re.sub(r"[^A-Za-z0-9]", "_", sensor_id or "SENSOR").upper()
+    guard = f"SUNBENCH_CAMERA_CALIBRATION_{tag}_H"
+    comment = "".join(f"\n   {key}: {comment_safe(value)}" for key, value in (provenance or {}).items()
+                      if value is not None)
+    rows = ",\n    ".join(c_array(row) for row in r)
+    lines = [
+        f"/* sunbench camera calibration (OpenCV model), sensor {comment_safe(sensor_id or 'unknown')}.",
+        "   Generated by `sunbench`; do not edit. Pixels: x right, y down, pixel (0, 0) centred on (0, 0); angles in",
+        "   degrees; body frame +z = boresight, n = (sin z cos a, sin z sin a, cos z)." + comment + " */",
+        f"#ifndef {guard}",
+        f"#define {guard}",
+        "",
+        _PRELUDE,
+        f"#define SBCAM_WIDTH_PX {int(model.width_px)}",
+        f"#define SBCAM_HEIGHT_PX {int(model.height_px)}",
+        f"#define SBCAM_NEWTON_ITERATIONS {NEWTON_ITERATIONS}",
+        f"#define SBCAM_NEWTON_TOLERANCE ({c_double(NEWTON_TOLERANCE)})",
+        f"static const double SBCAM_FX_PX = {c_double(model.fx_px)};",
+        f"static const double SBCAM_FY_PX = {c_double(model.fy_px)};",
+        f"static const double SBCAM_CX_PX = {c_double(model.cx_px)};",
+        f"static const double SBCAM_CY_PX = {c_double(model.cy_px)};",
+        f"static const double SBCAM_DIST[5] = {c_array(model.dist_coeffs)};  /* OpenCV's k1, k2, p1, p2, k3 */",
+        f"/* the rotation body -> camera: Rodrigues vector {c_array(model.rotation_deg)} deg; X_cam = R * n_body */",
+        "static const double SBCAM_R[3][3] = {\n    " + rows + "};",
+        "",
+        _BODY,
+        f"#endif /* {guard} */",
+        "",
+    ]
+    return "\n".join(lines)
