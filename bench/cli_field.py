@@ -31,6 +31,8 @@ field_app = typer.Typer(help="The real Sun as the reference: solar position, fie
 SEED003_SITE = Site(54.8437, 83.0930, 160.0)
 SEED003_START = "2019-09-29T03:58:17Z"
 SEED003_HOURS = 5.4411  # to 16:24:45
+#: TT − UT of the simulated sky [s] (the measured value around 2013–2019), written in the file's header
+SIMULATED_DELTA_T_S = 69.0
 
 
 def register(app: typer.Typer) -> None:
@@ -93,11 +95,12 @@ def simulate(
     from .field_sim import cloud_banks, field_sensor, sensor_world
 
     site = Site(lat, lon, alt)
+    atmosphere = Atmosphere(pressure, temperature, SIMULATED_DELTA_T_S)  # refuse impossible air before anything runs
     start_s = float(utc_seconds([start])[0])
     rng = np.random.default_rng(seed)
     banks, haze = cloud_banks(clouds, start_s, start_s + hours * 3600.0, rng)
-    sky = SimulatedSky(site.latitude_deg, site.longitude_deg, site.altitude_m, pressure_hpa=pressure,
-                       temperature_c=temperature, delta_t_s=69.0, haze=haze, clouds=banks)
+    sky = SimulatedSky(site.latitude_deg, site.longitude_deg, site.altitude_m, pressure_hpa=atmosphere.pressure_hpa,
+                       temperature_c=atmosphere.temperature_c, delta_t_s=SIMULATED_DELTA_T_S, haze=haze, clouds=banks)
     mount = SimulatedMount(heading, roll, pitch)
     base, family, sensor_truth = sensor_world(bench, serial)
     world = field_world(sky, mount, start_s, base=base)
@@ -114,7 +117,8 @@ def simulate(
     from .field_datafile import write_field_csv
     write_field_csv(output, record.columns, metadata={
         "latitude_deg": site.latitude_deg, "longitude_deg": site.longitude_deg, "altitude_m": site.altitude_m,
-        "heading_deg": compass, **inclinometer, "pressure_hpa": pressure, "temperature_c": temperature})
+        "heading_deg": compass, **inclinometer, "pressure_hpa": pressure, "temperature_c": temperature,
+        "delta_t_s": SIMULATED_DELTA_T_S})
     ok = sum(s == "ok" for s in record.columns["status"])
     level = ("is level" if not any(inclinometer.values()) else
              f"is tilted roll {inclinometer['roll_deg']:g}°, pitch {inclinometer['pitch_deg']:g}° (an inclinometer)")
@@ -158,13 +162,17 @@ def record(
     Sun. The rows are written as they come, so a run cut short keeps what it read."""
     import time as _time
 
-    from .field_datafile import write_field_csv
-    from .field_run import FieldRecord, record_field
+    from .field_datafile import FieldCsvAppender
+    from .field_run import COLUMNS, FieldRecord, record_field
 
     if kind not in ("cmos", "camera"):
         raise FieldDataError(f"--kind must be cmos or camera, got {kind!r}")
+    if (lat is None) != (lon is None):
+        raise FieldDataError("give both --lat and --lon, or neither")
     if lat is not None:
-        Site(lat, lon if lon is not None else 0.0, alt or 0.0)  # refuse a site out of range before anything runs
+        Site(lat, lon, alt or 0.0)  # refuse a site out of range before anything runs
+    if pressure is not None or temperature is not None:
+        Atmosphere(1013.25 if pressure is None else pressure, 12.0 if temperature is None else temperature)
     sensor, read, full_scale, close = _open_sensor(kind, port)
     start = _time.time()
     metadata = {"latitude_deg": lat, "longitude_deg": lon, "altitude_m": alt, "heading_deg": heading,
@@ -176,21 +184,18 @@ def record(
             _time.sleep(delay)
 
     offsets = np.arange(0.0, hours * 3600.0 + 1e-9, interval)
-    recorder = FieldRecord()
+    names = COLUMNS + (("spot_cloud",) if kind == "camera" else ())  # the camera flags cloud itself
     try:
-        with out.status("recording") as status:
-            def progress(i: int, n: int) -> None:
-                status.update(f"reading {i}/{n}")
-                if i % 10 == 0:  # keep what was read on disk while the run goes on
-                    write_field_csv(output, recorder.columns, metadata=metadata)
-
+        # every row goes to the file as it is read: a run cut short, or killed, keeps what it read
+        with FieldCsvAppender(output, names, metadata=metadata) as sink, out.status("recording") as status:
+            recorder = FieldRecord(on_row=sink.append)
+            if kind == "camera":
+                recorder.columns["spot_cloud"] = []
             record_field(sensor, read, offsets_s=offsets, start_utc_s=start, wait_until=wait_until,
                          full_scale_dn=full_scale, exposure_ms=exposure, clock=lambda: _time.time() - start,
-                         progress=progress, into=recorder)
+                         progress=lambda i, n: status.update(f"reading {i}/{n}"), into=recorder)
     finally:
         close()
-        if len(recorder):  # whatever ended the run, what was read is written
-            write_field_csv(output, recorder.columns, metadata=metadata)
     ok = sum(s == "ok" for s in recorder.columns["status"])
     out.print(f"{len(recorder)} readings ({ok} with a spot) written to {escape(str(output))}", highlight=False)
 

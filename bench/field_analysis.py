@@ -24,9 +24,10 @@ from .datafile import DataFileError
 from .field_datafile import FieldData, read_field_csv
 
 MODES = ("file", "fit")
-#: A CMOS module's dark level under the spot's peak, for the brightness flag [DN] (bias + dark of the
-#: simulated module; a real module's is within a few DN of it and the flag's 15 % margin absorbs it).
-DARK_DN = 18.0
+#: The dark level under a spot's peak, by the calibration's family, for the brightness flag [DN]: the CMOS
+#: module's bias and dark signal, a webcam's black level (the simulated ones'; a real sensor's is within a few DN
+#: of them, which the flag's 15 % margin absorbs at the peaks the exposure control keeps, 25–90 % of full scale).
+DARK_DN = {"cmos": 18.0, "camera": 12.0}
 
 
 @dataclass(frozen=True)
@@ -37,7 +38,6 @@ class FieldSetup:
     atmosphere: Atmosphere
     mount: Mount
     heading_known: bool
-    level_known: bool
     fov_half_deg: float
     notes: tuple[str, ...] = ()
 
@@ -110,16 +110,16 @@ def field_setup(data: FieldData, *, site: Site | None = None, heading_deg: float
                             pick(delta_t_s, "delta_t_s"))
     heading = pick(heading_deg, "heading_deg")
     roll, pitch = pick(roll_deg, "roll_deg"), pick(pitch_deg, "pitch_deg")
-    level_known = roll is not None and pitch is not None
-    if not level_known:
-        notes.append("no roll and pitch given: the mount is taken as level")
+    if roll is None or pitch is None:
+        missing = " and ".join(n for n, v in (("roll", roll), ("pitch", pitch)) if v is None)
+        notes.append(f"no {missing} given: taken as 0 (level)")
     fov = pick(fov_half_deg, "fov_half_deg")
     if fov is None and isinstance(calibration, dict) and isinstance(calibration.get("design"), dict):
         fov = calibration["design"].get("fov_half_deg")
     fov = float(fov if fov is not None else DEFAULT_SENSOR.fov_half_deg)
     mount = Mount(heading_deg=0.0 if heading is None else heading, roll_deg=roll or 0.0, pitch_deg=pitch or 0.0)
     return FieldSetup(site=site, atmosphere=atmosphere, mount=mount, heading_known=heading is not None,
-                      level_known=level_known, fov_half_deg=fov, notes=tuple(notes))
+                      fov_half_deg=fov, notes=tuple(notes))
 
 
 def analyse_field(data: FieldData, calibration: dict | None = None, *, heading: str = "file", level: str = "file",
@@ -146,8 +146,9 @@ def analyse_field(data: FieldData, calibration: dict | None = None, *, heading: 
     brightness = None
     if "peak_dn" in data.numbers and "exposure_ms" in data.numbers:
         try:
+            family = "camera" if isinstance(calibration, dict) and calibration.get("family") == "camera" else "cmos"
             brightness = brightness_cloud_flags(np.where(valid, data.numbers["peak_dn"], np.nan),
-                                                data.numbers["exposure_ms"], zenith, background_dn=DARK_DN)
+                                                data.numbers["exposure_ms"], zenith, background_dn=DARK_DN[family])
             cloudy |= brightness.cloudy
             notes.append(f"{int(brightness.cloudy.sum())} readings flagged as cloud: their spot was more than "
                          f"{brightness.drop:.0%} dimmer than the clear Sun at that angle")
@@ -161,14 +162,20 @@ def analyse_field(data: FieldData, calibration: dict | None = None, *, heading: 
         fit_heading = heading == "fit" or not setup.heading_known
         if not setup.heading_known and heading == "file":
             notes.append("the file gives no heading: it is fitted")
-        comparison = compare_with_sun(data.t_s, zenith, azimuth, setup.site, setup.mount, setup.atmosphere,
-                                      heading="fit" if fit_heading else "given", level="fit" if level == "fit" else
-                                      "given", cloudy=cloudy, invalid=~valid, fov_half_deg=setup.fov_half_deg)
+        try:
+            comparison = compare_with_sun(data.t_s, zenith, azimuth, setup.site, setup.mount, setup.atmosphere,
+                                          heading="fit" if fit_heading else "given",
+                                          level="fit" if level == "fit" else "given", cloudy=cloudy, invalid=~valid,
+                                          fov_half_deg=setup.fov_half_deg)
+        except FieldDataError as exc:
+            if not do_locate:
+                raise
+            notes.append(f"no comparison with the Sun at the file's site: {exc}")  # the site may be what is wrong
     fix = None
     if do_locate:
-        use = valid & ~cloudy
-        if comparison is not None:
-            use &= comparison.in_fov
+        # the readings of a clear Sun inside the sensor's field, by the sensor's own angle: the file's site (which
+        # may be wrong: that is why one locates) chooses nothing
+        use = valid & ~cloudy & (zenith <= setup.fov_half_deg)
         altitude = setup.site.altitude_m if setup.site is not None else 0.0
         fix = locate(data.t_s[use], zenith[use], azimuth[use], altitude_m=altitude, atmosphere=setup.atmosphere,
                      mount=setup.mount, level="fit" if level == "fit" else "given", sigma_deg=sigma_deg,

@@ -19,6 +19,8 @@ from __future__ import annotations
 import csv
 import datetime as dt
 import math
+import os
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -122,11 +124,11 @@ def read_field_csv(path, *, text: str | None = None) -> FieldData:
     cloud, spot_cloud = (_flags(table, name) if table.has(name) else None for name in ("cloud", "spot_cloud"))
     sensor_id = None
     if table.has("sensor_id"):
-        ids = sorted(set(table.texts("sensor_id")))
+        ids = sorted({i for i in table.texts("sensor_id") if i})  # an empty cell names no other sensor
         if len(ids) > 1:
             raise DataFileError(table.path, f"holds readings of {len(ids)} sensors ({', '.join(ids[:5])}); a field "
                                             "file is one sensor's", column="sensor_id")
-        sensor_id = ids[0] or None
+        sensor_id = ids[0] if ids else None
     return FieldData(path=table.path, time_utc=times, t_s=t_s, ok=ok, x_px=spots.get("x_px"), y_px=spots.get("y_px"),
                      zenith_deg=directions.get("zenith_deg"), azimuth_deg=directions.get("azimuth_deg"),
                      numbers=numbers, cloud=cloud, metadata=metadata, sensor_id=sensor_id, spot_cloud=spot_cloud)
@@ -167,25 +169,73 @@ def iso_utc(t_s: float) -> str:
     return stamp.isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
+class FieldCsvAppender:
+    """A field CSV written row by row, as a field run reads: the header comments and the column names at once, then
+    each row flushed to the operating system as it is appended (a run killed keeps every row read) and synced to
+    the disk every `sync_s` seconds (a power cut loses at most that much). A context manager.
+
+    Parameters
+    ----------
+    path : path-like
+    names : sequence of str
+        The columns, ``time_utc`` first.
+    metadata : dict, optional
+        The ``# key: value`` header comments (:data:`FIELD_KEYS`; None values are left out).
+    """
+
+    def __init__(self, path, names, *, metadata: dict | None = None, flush: bool = True, sync_s: float = 30.0):
+        self.names = list(names)
+        if not self.names or self.names[0] != "time_utc":
+            raise ValueError("a field CSV starts with its time_utc column")
+        unknown = [key for key in (metadata or {}) if key not in FIELD_KEYS]
+        if unknown:
+            raise ValueError(f"unknown field header key(s) {', '.join(unknown)}")
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fh = self.path.open("w", newline="")
+        self._flush, self._sync_s, self._synced = flush, sync_s, time.monotonic()
+        for key, value in (metadata or {}).items():
+            if value is not None:
+                self._fh.write(f"# {key}: {value:.10g}\n")
+        self._csv = csv.writer(self._fh)
+        self._csv.writerow(self.names)
+        self._push()
+
+    def append(self, row: dict) -> None:
+        """One row: column → value (``time_utc`` an ISO string or Unix seconds; a missing column is left empty)."""
+        stamp = row["time_utc"]
+        self._csv.writerow([stamp if isinstance(stamp, str) else iso_utc(float(stamp))]
+                           + [_cell(row.get(c)) for c in self.names[1:]])
+        self._push()
+
+    def _push(self) -> None:
+        if not self._flush:
+            return
+        self._fh.flush()
+        if time.monotonic() - self._synced >= self._sync_s:
+            os.fsync(self._fh.fileno())
+            self._synced = time.monotonic()
+
+    def close(self) -> None:
+        if not self._fh.closed:
+            self._fh.flush()
+            os.fsync(self._fh.fileno())
+            self._fh.close()
+
+    def __enter__(self) -> FieldCsvAppender:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
 def write_field_csv(path, columns: dict, *, metadata: dict | None = None) -> None:
     """Write a field CSV: `columns` maps column name → values (``time_utc`` first: ISO strings or Unix seconds),
     `metadata` the ``# key: value`` header comments (:data:`FIELD_KEYS`; None values are left out)."""
     names = list(columns)
-    if not names or names[0] != "time_utc":
-        raise ValueError("a field CSV starts with its time_utc column")
-    times = [t if isinstance(t, str) else iso_utc(float(t)) for t in columns["time_utc"]]
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as fh:
-        for key, value in (metadata or {}).items():
-            if key not in FIELD_KEYS:
-                raise ValueError(f"unknown field header key {key!r}")
-            if value is not None:
-                fh.write(f"# {key}: {value:.10g}\n")
-        w = csv.writer(fh)
-        w.writerow(names)
-        for i, stamp in enumerate(times):
-            w.writerow([stamp] + [_cell(columns[c][i]) for c in names[1:]])
+    with FieldCsvAppender(path, names, metadata=metadata, flush=False) as out:
+        for i in range(len(columns[names[0]]) if names else 0):
+            out.append({c: columns[c][i] for c in names})
 
 
 def _cell(value) -> str:

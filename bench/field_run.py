@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+#: The columns every field run records (a sensor that flags cloud itself adds ``spot_cloud``).
+COLUMNS = ("time_utc", "x_px", "y_px", "peak_dn", "exposure_ms", "status")
 #: The spot's peak the exposure aims at, as a fraction of the full scale, and the band it tolerates.
 TARGET_PEAK = 0.6
 PEAK_BAND = (0.25, 0.9)
@@ -28,8 +30,8 @@ class FieldRecord:
     """What a field run recorded, by column (a field CSV's columns, :mod:`bench.field_datafile`). A sensor whose
     readings carry their own cloud flag (the camera's ``cloud``: the spot's shape) adds a ``spot_cloud`` column."""
 
-    columns: dict = field(default_factory=lambda: {name: [] for name in (
-        "time_utc", "x_px", "y_px", "peak_dn", "exposure_ms", "status")})
+    columns: dict = field(default_factory=lambda: {name: [] for name in COLUMNS})
+    on_row: Callable[[dict], None] | None = None  # each row as it is added (a file written as the run goes)
 
     def add(self, t_utc_s: float, reading, exposure_ms: float) -> None:
         c = self.columns
@@ -44,6 +46,8 @@ class FieldRecord:
         if "spot_cloud" in c:
             flag = reading.values.get("cloud")
             c["spot_cloud"].append(None if flag is None or not reading.ok else bool(flag))
+        if self.on_row is not None:
+            self.on_row({name: values[-1] for name, values in c.items()})
 
     def __len__(self) -> int:
         return len(self.columns["time_utc"])

@@ -194,3 +194,32 @@ def test_record_reads_a_sensor_on_a_port_in_real_time(tmp_path):
     assert data.t_s[-1] - before >= 0.5
     assert data.metadata == {"latitude_deg": 54.8437, "longitude_deg": 83.093, "roll_deg": 0.0, "pitch_deg": 0.0}
     assert_user_error(invoke("field", "record", "-o", tmp_path / "x.csv", "--kind", "ccd", "--port", url), "--kind")
+
+
+def test_locate_does_not_lean_on_the_site_the_file_states(day, tmp_path):
+    """The site in the header only measures the error: a file whose header names a site 40° of longitude off
+    locates the same, from the same readings (the field of view judged by the sensor's own angle, not by the Sun
+    at the stated site), and says it could not compare at that site if it could not."""
+    text = (day / "day.csv").read_text()
+    wrong = tmp_path / "wrong.csv"
+    wrong.write_text(text.replace("# longitude_deg: 83.093", "# longitude_deg: 43.093"))
+    right = invoke("field", "locate", day / "day.csv", "--cal", day / "cal.json", "--json", tmp_path / "right.json")
+    moved = invoke("field", "locate", wrong, "--cal", day / "cal.json", "--json", tmp_path / "wrong.json")
+    assert right.exit_code == 0 and moved.exit_code == 0, moved.output
+    a = json.loads((tmp_path / "right.json").read_text())["location"]
+    b = json.loads((tmp_path / "wrong.json").read_text())["location"]
+    assert a["n"] == b["n"] and a["latitude_deg"] == pytest.approx(b["latitude_deg"], abs=1e-6)
+    assert b["error_km"] > 2000  # measured against the wrong site it names
+
+
+def test_record_writes_every_row_as_it_reads(tmp_path):
+    """The field file grows row by row while the run goes (a run killed keeps what it read): here the writer is
+    read back after each row."""
+    from bench.field_datafile import FieldCsvAppender
+
+    path = tmp_path / "live.csv"
+    with FieldCsvAppender(path, ("time_utc", "x_px", "y_px", "status"), metadata={"latitude_deg": 50.0}) as sink:
+        for i in range(3):
+            sink.append({"time_utc": 1569729497.0 + i, "x_px": 1.0 + i, "y_px": 2.0, "status": "ok"})
+            assert len(read_field_csv(path)) == i + 1  # on disk before the file is closed
+    assert read_field_csv(path).metadata == {"latitude_deg": 50.0}

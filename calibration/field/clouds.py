@@ -33,7 +33,8 @@ class BrightnessFlags:
     Attributes
     ----------
     cloudy : ndarray of bool
-        Readings whose signal per ms fell more than `drop` below the clear law (NaN readings are not flagged).
+        Readings whose signal per ms fell more than `drop` below the clear law, or to the dark level (NaN readings
+        are not flagged).
     ratio : ndarray
         Each reading's signal over the clear law's [unitless] (1: clear).
     law : ndarray
@@ -96,5 +97,7 @@ def brightness_cloud_flags(peak_dn, exposure_ms, sensor_zenith_deg, *, backgroun
     ratio[usable] = np.exp(log_s - design @ coef)
     cloudy = np.zeros(signal.shape, dtype=bool)
     cloudy[usable] = ratio[usable] < 1 - drop
+    dark = np.isfinite(signal) & (signal <= 0)  # a spot no brighter than the dark: the Sun all but gone
+    ratio[dark], cloudy[dark] = 0.0, True
     return BrightnessFlags(cloudy=cloudy, ratio=ratio, law=np.pad(coef, (0, 3 - degree)),
                            centre_deg=float(np.degrees(centre)), drop=drop)
