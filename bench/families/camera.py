@@ -94,7 +94,7 @@ def dry_reading(repeat: int, campaign) -> Reading:
     return camera_reading(repeat, peak_dn=target * FULL_SCALE_DN)
 
 
-def _clipped(reading, width_px: int = DESIGN.width_px, height_px: int = DESIGN.height_px) -> bool:
+def spot_clipped(reading, width_px: int = DESIGN.width_px, height_px: int = DESIGN.height_px) -> bool:
     x, y = reading.value("x_px"), reading.value("y_px")
     return not (EDGE_MARGIN_PX <= x <= width_px - 1 - EDGE_MARGIN_PX and EDGE_MARGIN_PX <= y <= height_px - 1
                 - EDGE_MARGIN_PX)
@@ -105,7 +105,7 @@ def summary(readings) -> dict:
     how many of them the cloud flag marked."""
     good = [r for r in readings if r.ok]
     return {"spots": [(r.value("x_px"), r.value("y_px")) for r in good],
-            "spots_clipped": [_clipped(r) for r in good],
+            "spots_clipped": [spot_clipped(r) for r in good],
             "clouds": sum(bool(r.value("cloud", False)) for r in good)}
 
 
@@ -197,7 +197,7 @@ def bench_data(catalogue, run_ids, *, sensor_id: str | None = None,
     procedure = procedure or _procedure(catalogue, run_ids)
     rows = [r for r in catalogue.readings(run_ids) if r.ok and r.value("x_px") is not None
             and r.value("y_px") is not None and r.zenith_deg is not None and 0.0 <= r.zenith_deg < 90.0]
-    kept = [r for r in rows if not _clipped(r, procedure.width_px, procedure.height_px)]
+    kept = [r for r in rows if not spot_clipped(r, procedure.width_px, procedure.height_px)]
     if not kept:
         from calibration.errors import InsufficientDataError
         raise InsufficientDataError(f"runs {list(run_ids)} recorded no usable spot")

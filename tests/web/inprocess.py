@@ -1,5 +1,5 @@
 """The web app in-process (Starlette's TestClient) around a bench service, with the tests' token and host; and a
-bench service on the simulated QD bench (seed 002's quadrant photodiode)."""
+bench service on the simulated QD bench (seed 002's quadrant photodiode) or camera bench (seed 001's camera)."""
 
 import contextlib
 from pathlib import Path
@@ -35,13 +35,27 @@ def api_client(service, **settings) -> TestClient:
 QD_BENCH = Path(__file__).resolve().parents[2] / "examples" / "bench-sim-qd.yaml"
 
 
+#: The simulated camera bench of seed 001 (README: sunbench serve --bench examples/bench-sim-camera.yaml)
+CAMERA_BENCH = QD_BENCH.parent / "bench-sim-camera.yaml"
+
+
 @contextlib.contextmanager
-def qd_bench_service(folder: Path):
-    """A started bench service on the simulated QD bench at time scale 0, its catalogue in `folder`."""
-    service = BenchService(load_bench_file(QD_BENCH), Catalogue(folder / "qd.sqlite"), time_scale=0.0,
-                           status_period_s=0.05).start()
+def bench_file_service(bench: Path, catalogue: Path):
+    """A started bench service on the simulated bench of the bench file `bench` at time scale 0, its catalogue at
+    `catalogue`."""
+    service = BenchService(load_bench_file(bench), Catalogue(catalogue), time_scale=0.0, status_period_s=0.05).start()
     try:
         yield service
     finally:
         service.close()
         service.catalogue.close()
+
+
+def qd_bench_service(folder: Path):
+    """A started bench service on the simulated QD bench at time scale 0, its catalogue in `folder`."""
+    return bench_file_service(QD_BENCH, folder / "qd.sqlite")
+
+
+def camera_bench_service(folder: Path):
+    """A started bench service on the simulated camera bench at time scale 0, its catalogue in `folder`."""
+    return bench_file_service(CAMERA_BENCH, folder / "camera.sqlite")

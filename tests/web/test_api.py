@@ -78,6 +78,7 @@ READS = [
     ("GET", "/api/runs/1/qd/dark", None),
     ("GET", "/api/runs/1/qd/error-map", None),
     ("GET", "/api/runs/1/qd/metrics", None),
+    ("GET", "/api/runs/1/camera/fit", None),
     ("GET", "/api/runs/1/data.csv", None),
     ("GET", "/api/calibrations/1/physical.json", None),
     ("GET", "/api/calibrations/1/physical.h", None),

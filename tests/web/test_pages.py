@@ -12,6 +12,7 @@ import pytest
 from inprocess import AUTH, TOKEN, api_client
 
 from bench.campaign import (
+    CameraGridProcedure,
     Campaign,
     PhysicalProcedure,
     QdDarkSweep,
@@ -273,19 +274,19 @@ def _limits(field) -> tuple[float | None, float | None]:
     return low, high
 
 
-def test_the_launcher_offers_the_seed003_physical_and_qd_plans(client):
+def test_the_launcher_offers_the_seed003_physical_qd_and_camera_plans(client):
     # the page holds every plan's fieldset; launch.js keeps those of the bench's family (its <body data-plans>)
     form = _launch_form(client)
-    assert form.options == ["seed003", "physical", "qd-grid", "qd-physical", "qd-dark"]
+    assert form.options == ["seed003", "physical", "qd-grid", "qd-physical", "qd-dark", "camera-grid"]
     assert set(form.options) <= set(typing.get_args(Campaign.model_fields["plan"].annotation))
     # one fieldset per plan, named as the plan (its data-field names Campaign's field: qd_grid for qd-grid)
-    assert set(form.inputs) == {None, "seed003", "physical", "qd-grid", "qd-physical", "qd-dark"}
+    assert set(form.inputs) == {None, "seed003", "physical", "qd-grid", "qd-physical", "qd-dark", "camera-grid"}
     assert {"name", "operator", "sensors"} <= set(form.inputs[None]) and {"plan", "frames"} <= form.selects
 
 
 @pytest.mark.parametrize("plan, model", [("seed003", Seed003Procedure), ("physical", PhysicalProcedure),
                                          ("qd-grid", QdGridProcedure), ("qd-physical", QdPhysicalProcedure),
-                                         ("qd-dark", QdDarkSweep)])
+                                         ("qd-dark", QdDarkSweep), ("camera-grid", CameraGridProcedure)])
 def test_every_field_of_the_launcher_has_the_models_default_and_limits(client, plan, model):
     inputs = _launch_form(client).inputs[plan]
     targets = {name.split(".", 1)[1] for name in inputs if name.startswith("parameter_targets.")}
@@ -303,7 +304,9 @@ def test_every_field_of_the_launcher_has_the_models_default_and_limits(client, p
               "qd-grid": {"field_deg", "step_deg", "repeats", "check_points", "temperature_c"},  # + dark.* (test_qd.py)
               "qd-physical": {"field_deg", "steps_deg", "check_directions", "repeats", "check_max_target_deg",
                               "check_rms_target_deg", "temperature_c"},
-              "qd-dark": {"temperatures_c", "repeats", "tolerance_c"}}[plan]
+              "qd-dark": {"temperatures_c", "repeats", "tolerance_c"},
+              "camera-grid": {"horizontal_fov_deg", "width_px", "height_px", "rings", "azimuths", "margin_radii",
+                              "repeats"}}[plan]
     assert fields == wanted
     for name in fields:
         attrs, field = inputs[name], model.model_fields[name]

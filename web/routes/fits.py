@@ -17,6 +17,9 @@ from ..schemas import LeftOutFramePublic, _Out
 router = APIRouter(prefix="/api/runs", tags=["runs"], dependencies=READ,
                    responses={404: {"description": "No such run, or no such calibration of it"}})
 
+#: Where the results of another family's run are (web/routes/qd.py, web/routes/camera.py)
+RESULTS_ROUTES = {"qd": "qd/metrics", "camera": "camera/fit"}
+
 
 class FitPointPublic(_Out):
     id: int
@@ -56,11 +59,11 @@ def read_fit(run_id: RunId, catalogue: CatalogueDep, method: str | None = None):
     """The run's points (mean spot of each) with their radius from the calibration's centre, the direction
     the calibration gives, and its residuals: what the zenith-vs-radius and residual plots draw.
     `method` defaults to the chosen calibration. A spot-sensor (cmos) view: a run of another family is 409 (a QD
-    run's figures are under ``/api/runs/{id}/qd/…``)."""
+    run's figures are under ``/api/runs/{id}/qd/…``, a camera run's at ``/api/runs/{id}/camera/fit``)."""
     family = catalogue.run(run_id)["family"]
     if family != "cmos":
         raise HTTPException(409, f"run {run_id} measured a {family} sensor: its results are not spot fits "
-                                 f"(see /api/runs/{run_id}/{family}/metrics)")
+                                 f"(see /api/runs/{run_id}/{RESULTS_ROUTES.get(family, f'{family}/metrics')})")
     try:
         return FitPublic(**fit_residuals(catalogue, run_id, method))
     except NoCalibration as exc:
