@@ -23,9 +23,9 @@ from calibration.camera import PARAMETERS, camera_from_document, project, zenith
 from calibration.geometry import angular_error_deg, direction_vector
 
 from .families.camera import spot_clipped
-from .results import calibration_record, readings_by_point, split_left_out
+from .results import calibration_record, family_run, finite_or_none, readings_by_point, split_left_out
 
-__all__ = ["FAMILY", "NotCameraRun", "camera_fit"]
+__all__ = ["FAMILY", "camera_fit"]
 
 #: The family whose runs this view reads
 FAMILY = "camera"
@@ -42,24 +42,10 @@ PARAMETERS_NOTE = ("± 1σ from the fit's covariance. The principal point (cx, c
                    "stay as well determined as the held-out figures say.")
 
 
-class NotCameraRun(ValueError):
-    """The run measured another family's sensor: its results have another view."""
 
 
-def _finite(value) -> float | None:
-    if value is None:
-        return None
-    value = float(value)
-    return value if np.isfinite(value) else None
 
 
-def _camera_run(catalogue, run_id: int) -> dict:
-    run = catalogue.run(run_id)  # "no run N" first
-    family = run.get("family", "cmos")
-    if family != FAMILY:
-        raise NotCameraRun(f"run {run_id} measured a {family} sensor, not a {FAMILY} one: its results have the "
-                           f"{family} view")
-    return run
 
 
 def _has_spot(reading) -> bool:
@@ -76,7 +62,7 @@ def _parameters(model, document: dict) -> list[dict]:
     sigma = document.get("sigma") or {}
     values = {name: getattr(model, name) for name in PARAMETERS[:9]}
     values.update(zip(PARAMETERS[9:], model.rotation_deg, strict=True))
-    return [{"name": name, "unit": _unit(name), "value": float(values[name]), "sd": _finite(sigma.get(name)),
+    return [{"name": name, "unit": _unit(name), "value": float(values[name]), "sd": finite_or_none(sigma.get(name)),
              "fitted": name in sigma} for name in PARAMETERS]
 
 
@@ -91,14 +77,16 @@ def _figures(metrics: dict) -> dict:
             continue
         groups = [float(g) for g in scheme.get("groups") or []]
         schemes.append({"scheme": name, "left_out": left_out, "groups_deg": groups, "n_groups": len(groups),
-                        "n_points": scheme.get("n_points"), "rms_deg": _finite(scheme.get("rms_deg")),
-                        "max_deg": _finite(scheme.get("max_deg")), "worse": name == worse})
-    return {"fit": {"n_points": metrics.get("n_points"), "rms_deg": _finite(metrics.get("fit_rms_deg")),
-                    "max_deg": _finite(metrics.get("fit_max_deg")), "rms_px": _finite(metrics.get("fit_rms_px")),
-                    "reduced_chi2": _finite(metrics.get("reduced_chi2")),
-                    "noise_px": _finite(metrics.get("noise_px"))},
+                        "n_points": scheme.get("n_points"), "rms_deg": finite_or_none(scheme.get("rms_deg")),
+                        "max_deg": finite_or_none(scheme.get("max_deg")), "worse": name == worse})
+    return {"fit": {"n_points": metrics.get("n_points"), "rms_deg": finite_or_none(metrics.get("fit_rms_deg")),
+                    "max_deg": finite_or_none(metrics.get("fit_max_deg")),
+                    "rms_px": finite_or_none(metrics.get("fit_rms_px")),
+                    "reduced_chi2": finite_or_none(metrics.get("reduced_chi2")),
+                    "noise_px": finite_or_none(metrics.get("noise_px"))},
             "held_out": schemes, "worse_scheme": worse,
-            "heldout_rms_deg": _finite(held.get("worst_rms_deg")), "heldout_max_deg": _finite(held.get("max_deg"))}
+            "heldout_rms_deg": finite_or_none(held.get("worst_rms_deg")),
+            "heldout_max_deg": finite_or_none(held.get("max_deg"))}
 
 
 def _summary(errors) -> dict:
@@ -133,10 +121,10 @@ def camera_fit(catalogue, run_id: int, method: str | None = None) -> dict:
     set, minus the mean spot). A point whose every spot lay at the frame's border keeps the mean of its spots and
     says why in `excluded` (counted in no summary); `frames_left_out` names each frame of a point no fit used.
 
-    Raises :class:`NotCameraRun` for a run of another family, :class:`~bench.results.NoCalibration` when the run has
-    no such calibration; the document's own format errors (:class:`calibration.errors.CalibrationFormatError`) pass
-    through."""
-    _camera_run(catalogue, run_id)
+    Raises :class:`~bench.results.WrongFamilyRun` for a run of another family, :class:`~bench.results.NoCalibration`
+    when the run has no such calibration; the document's own format errors
+    (:class:`calibration.errors.CalibrationFormatError`) pass through."""
+    family_run(catalogue, run_id, FAMILY)
     record = calibration_record(catalogue, run_id, method)
     document = record["document"]
     model = camera_from_document(document)
@@ -172,19 +160,19 @@ def camera_fit(catalogue, run_id: int, method: str | None = None) -> dict:
         azimuth = np.array([p["azimuth_deg"] for p in points])
         zenith_fit, azimuth_fit, error, residual = _errors(model, pixels, zenith, azimuth)
         for i, p in enumerate(points):
-            p.update(x_px=float(pixels[i, 0]), y_px=float(pixels[i, 1]), zenith_fit_deg=_finite(zenith_fit[i]),
-                     azimuth_fit_deg=_finite(azimuth_fit[i]), error_deg=_finite(error[i]),
-                     residual_x_px=_finite(residual[i, 0]), residual_y_px=_finite(residual[i, 1]))
+            p.update(x_px=float(pixels[i, 0]), y_px=float(pixels[i, 1]), zenith_fit_deg=finite_or_none(zenith_fit[i]),
+                     azimuth_fit_deg=finite_or_none(azimuth_fit[i]), error_deg=finite_or_none(error[i]),
+                     residual_x_px=finite_or_none(residual[i, 0]), residual_y_px=finite_or_none(residual[i, 1]))
     frames = {"n_points": 0, "rms_deg": None, "max_deg": None, "rms_px": None}
     if used_frames:
         f = np.array(used_frames, dtype=float)
         _, _, error, residual = _errors(model, f[:, :2], f[:, 2], f[:, 3])
-        frames = {**_summary(error), "rms_px": _finite(np.sqrt(np.mean(np.sum(residual**2, axis=1))))}
+        frames = {**_summary(error), "rms_px": finite_or_none(np.sqrt(np.mean(np.sum(residual**2, axis=1))))}
     design = document.get("design") or {}
     return {"run_id": run_id, "method": record["method"], "chosen": bool(record["chosen"]),
             "created_utc": record.get("created_utc"), "sensor_id": document.get("sensor_id"),
             "width_px": model.width_px, "height_px": model.height_px,
-            "fov_half_deg": _finite(design.get("fov_half_deg")),
+            "fov_half_deg": finite_or_none(design.get("fov_half_deg")),
             "parameters": _parameters(model, document), "parameters_note": PARAMETERS_NOTE,
             "figures": _figures(metrics), "warnings": [str(w) for w in document.get("warnings") or []],
             "frames": frames, "points": _summary([p["error_deg"] for p in points if not p["excluded"]]),

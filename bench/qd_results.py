@@ -25,7 +25,15 @@ from calibration.qd.document import angles_from_photocurrents, validate_document
 
 from .families.qd import CHECK, DARK, SATURATED
 from .families.qd import summary as point_summary
-from .results import NoCalibration, calibration_record, readings_by_point, rejected_readings, split_left_out
+from .results import (
+    NoCalibration,
+    calibration_record,
+    family_run,
+    finite_or_none,
+    readings_by_point,
+    rejected_readings,
+    split_left_out,
+)
 
 #: The family whose runs these views read
 FAMILY = "qd"
@@ -37,22 +45,10 @@ SATURATED_REASON = "a quadrant reached full scale (its current is only a lower b
 CURVE_SAMPLES = 61
 
 
-class NotQdRun(ValueError):
-    """The run measured another family's sensor: its results have another view."""
 
 
-def _finite(value) -> float | None:
-    value = float(value)
-    return value if np.isfinite(value) else None
 
 
-def _qd_run(catalogue, run_id: int) -> dict:
-    run = catalogue.run(run_id)  # "no run N" first
-    family = run.get("family", "cmos")
-    if family != FAMILY:
-        raise NotQdRun(f"run {run_id} measured a {family} sensor, not a {FAMILY} one: its results have the "
-                       f"{family} view")
-    return run
 
 
 def _chosen_or_none(catalogue, run_id: int, method: str | None) -> dict | None:
@@ -87,7 +83,7 @@ def qd_currents(catalogue, run_id: int) -> dict:
     the projection angles α, β of seed 002 eq. 2.2; None at a dark point), and the mean raw current of each
     quadrant (dark current included) over its readings without a clipped channel, their sum and the mean
     temperature; `n_saturated` counts the readings with a clipped channel."""
-    _qd_run(catalogue, run_id)
+    family_run(catalogue, run_id, FAMILY)
     lineage = catalogue.lineage(run_id)
     readings = readings_by_point(catalogue.readings(lineage))
     points = catalogue.points(lineage)
@@ -112,7 +108,7 @@ def qd_currents(catalogue, run_id: int) -> dict:
 # --- the dark current -----------------------------------------------------------------------------------------
 def _model_parts(model: DarkModel, document: dict) -> dict:
     return {"model": model.kind, "t_ref_c": float(model.t_ref_c), "quadrants": document.get("quadrants") or [],
-            "residual_sd_a": [_finite(v) for v in model.residual_sd_a], "note": document.get("note"),
+            "residual_sd_a": [finite_or_none(v) for v in model.residual_sd_a], "note": document.get("note"),
             "temperature_range_c": document.get("temperature_range_c")}
 
 
@@ -123,7 +119,7 @@ def qd_dark(catalogue, run_id: int, method: str | None = None) -> dict:
     to the readings here (`source` says which; None when there are too few). `curve` samples the model over
     the temperatures of every reading of the run, light ones included (a model outside its dark readings'
     range is extrapolated: `dark_range_c` against `light_range_c`)."""
-    _qd_run(catalogue, run_id)
+    family_run(catalogue, run_id, FAMILY)
     lineage = catalogue.lineage(run_id)
     record = _chosen_or_none(catalogue, run_id, method)
     rejected = rejected_readings(record["document"]) if record else {}
@@ -183,7 +179,7 @@ def qd_error_map(catalogue, run_id: int, method: str | None = None) -> dict:
 
     Raises :class:`~bench.results.NoCalibration` when the run has no such calibration; the document's own
     format errors (:class:`calibration.errors.CalibrationFormatError`) pass through."""
-    _qd_run(catalogue, run_id)
+    family_run(catalogue, run_id, FAMILY)
     record = calibration_record(catalogue, run_id, method)
     document = record["document"]
     validate_document(document)
@@ -222,11 +218,11 @@ def qd_error_map(catalogue, run_id: int, method: str | None = None) -> dict:
             fit_zen, fit_az = zenith_azimuth_from_projection(np.where(ok, fit_a, 0.0), np.where(ok, fit_b, 0.0))
         for i, d in enumerate(directions):
             good = bool(ok[i])
-            d.update(alpha_fit_deg=_finite(fit_a[i]) if good else None,
-                     beta_fit_deg=_finite(fit_b[i]) if good else None,
-                     zenith_fit_deg=_finite(fit_zen[i]) if good else None,
-                     azimuth_fit_deg=_finite(fit_az[i]) if good else None,
-                     error_deg=_finite(error[i]) if good else None)
+            d.update(alpha_fit_deg=finite_or_none(fit_a[i]) if good else None,
+                     beta_fit_deg=finite_or_none(fit_b[i]) if good else None,
+                     zenith_fit_deg=finite_or_none(fit_zen[i]) if good else None,
+                     azimuth_fit_deg=finite_or_none(fit_az[i]) if good else None,
+                     error_deg=finite_or_none(error[i]) if good else None)
     summary = {kind: _summary([d["error_deg"] for d in directions if d["kind"] == kind and not d["excluded"]])
                for kind in ("node", "check")}
     field = max((max(abs(d["alpha_deg"]), abs(d["beta_deg"])) for d in directions), default=None)
@@ -239,7 +235,7 @@ def qd_metrics(catalogue, run_id: int) -> dict:
     """Every calibration of the run with its figures (held out between the nodes: max, RMS, p99 and the scheme
     that gave the worst; at the nodes; χ²/dof against the repeat scatter), the chosen one marked; of the chosen
     (else the latest) document, the readings the fit rejected (with their point) and its warnings."""
-    _qd_run(catalogue, run_id)
+    family_run(catalogue, run_id, FAMILY)
     records = catalogue.calibrations(run_id)
     methods = []
     for c in records:
@@ -267,4 +263,4 @@ def qd_metrics(catalogue, run_id: int) -> dict:
             "dark_model": dark.get("model"), "dark_note": dark.get("note")}
 
 
-__all__ = ["NotQdRun", "qd_currents", "qd_dark", "qd_error_map", "qd_metrics"]
+__all__ = ["qd_currents", "qd_dark", "qd_error_map", "qd_metrics"]

@@ -9,6 +9,7 @@ computed without them; a plot that drew them as the others would show a worst po
 
 from __future__ import annotations
 
+import math
 from collections import defaultdict
 
 import numpy as np
@@ -21,6 +22,28 @@ from .runner import EDGE_REASON, clipped, has_spot
 
 class NoCalibration(LookupError):
     """The run has no calibration of the method asked for."""
+
+
+class WrongFamilyRun(ValueError):
+    """The run measured another family's sensor: its results have another view."""
+
+
+def family_run(catalogue, run_id: int, family: str) -> dict:
+    """The run (``"no run N"`` first), or :class:`WrongFamilyRun` when it measured another family's sensor."""
+    run = catalogue.run(run_id)
+    measured = run.get("family", "cmos")
+    if measured != family:
+        raise WrongFamilyRun(f"run {run_id} measured a {measured} sensor, not a {family} one: its results have the "
+                             f"{measured} view")
+    return run
+
+
+def finite_or_none(value) -> float | None:
+    """A number for JSON: None for a missing or non-finite one."""
+    if value is None:
+        return None
+    value = float(value)
+    return value if math.isfinite(value) else None
 
 
 def calibration_record(catalogue, run_id: int, method: str | None) -> dict:

@@ -9,8 +9,8 @@ from __future__ import annotations
 from fastapi import APIRouter, HTTPException
 from pydantic import Field
 
-from bench.camera_results import NotCameraRun, camera_fit
-from bench.results import NoCalibration
+from bench.camera_results import camera_fit
+from bench.results import NoCalibration, WrongFamilyRun
 from calibration.errors import CalibrationFormatError
 
 from ..deps import READ, CatalogueDep, RunId
@@ -122,5 +122,5 @@ def read_camera_fit(run_id: RunId, catalogue: CatalogueDep, method: str | None =
         return camera_fit(catalogue, run_id, method)
     except NoCalibration as exc:
         raise HTTPException(404, str(exc)) from None
-    except (NotCameraRun, CalibrationFormatError) as exc:
+    except (WrongFamilyRun, CalibrationFormatError) as exc:
         raise HTTPException(409, str(exc)) from None

@@ -9,8 +9,8 @@ from __future__ import annotations
 from fastapi import APIRouter, HTTPException
 from pydantic import Field
 
-from bench.qd_results import NotQdRun, qd_currents, qd_dark, qd_error_map, qd_metrics
-from bench.results import NoCalibration
+from bench.qd_results import qd_currents, qd_dark, qd_error_map, qd_metrics
+from bench.results import NoCalibration, WrongFamilyRun
 from calibration.errors import CalibrationFormatError
 
 from ..deps import READ, CatalogueDep, RunId
@@ -26,7 +26,7 @@ def _answer(compute, *args):
         return compute(*args)
     except NoCalibration as exc:
         raise HTTPException(404, str(exc)) from None
-    except (NotQdRun, CalibrationFormatError) as exc:
+    except (WrongFamilyRun, CalibrationFormatError) as exc:
         raise HTTPException(409, str(exc)) from None
 
 
