@@ -170,6 +170,15 @@ function setRun(id, sensor) {
   if (id) readRun(id);
 }
 
+// a page that joined midway may have missed the points between its snapshot and the stream's first event: once
+// the run has ended, the catalogue's count is the one shown
+async function settleCount(id) {
+  if (!id) return;
+  let run;
+  try { run = await api(`/api/runs/${id}`); } catch (_) { return; } // the count shown stays
+  if (id === runId && Number.isInteger(run.n_points_recorded)) { shown.index = run.n_points_recorded; renderProgress(); }
+}
+
 function finishedLink(id) {
   if (id) $("#result-link").replaceChildren(el("a", { href: `/results?run=${id}` }, `results of run ${id}`));
 }
@@ -365,7 +374,7 @@ const HANDLERS = {
   finished: (d) => {
     log("finished", `${d.status}${d.reason ? `: ${d.reason}` : ""}`);
     finishedLink(d.run_id ?? runId);
-    if (!d.run_id || d.run_id === runId) { shown.ended = d.status; renderProgress(); }
+    if (!d.run_id || d.run_id === runId) { shown.ended = d.status; renderProgress(); settleCount(d.run_id ?? runId); }
     if (d.unsafe) showUnsafe(d.run_id ?? runId, d.unsafe);
   },
   "campaign-finished": (d) => {
