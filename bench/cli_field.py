@@ -1,8 +1,8 @@
-"""`sunbench field sunpos | simulate | compare | locate`: the real Sun as the reference (seed 003 §5, seed 001).
+"""`sunbench field sunpos | record | simulate | compare | locate`: the real Sun as reference (seed 003 §5, seed 001).
 
-`sunpos` prints SPA's apparent position; `simulate` records a simulated field day of a sensor through its driver
-(:mod:`bench.field_run`, :mod:`drivers.sim.field`); `compare` sets a field CSV's readings against SPA; `locate`
-finds the site and the heading from the Sun's track. Bad input ends in one stderr line and exit code 2
+`sunpos` prints SPA's apparent position; `record` reads a real sensor outdoors, `simulate` a simulated field day of
+a sensor, both through its driver (:mod:`bench.field_run`, :mod:`drivers.sim.field`); `compare` sets a field CSV's
+readings against SPA; `locate` finds the site and the heading from the Sun's track. Bad input ends in one stderr line and exit code 2
 (`cli_common.user_errors`).
 """
 
@@ -248,7 +248,8 @@ def _analysis(data_csv: Path, cal: Optional[Path], *, lat, lon, alt, heading, ro
         if lat is None or lon is None:
             raise FieldDataError("give both --lat and --lon")
         site = Site(lat, lon, alt or 0.0)
-    setup = field_setup(data, site=site, heading_deg=heading, roll_deg=roll, pitch_deg=pitch, pressure_hpa=pressure,
+    setup = field_setup(data, site=site, altitude_m=alt, heading_deg=heading, roll_deg=roll, pitch_deg=pitch,
+                        pressure_hpa=pressure,
                         temperature_c=temperature, delta_t_s=delta_t, fov_half_deg=fov, calibration=calibration)
     return analyse_field(data, calibration, heading=heading_mode, level=level_mode,
                          do_compare=not do_locate or setup.site is not None, do_locate=do_locate, setup=setup,

@@ -38,6 +38,7 @@ class FieldSetup:
     atmosphere: Atmosphere
     mount: Mount
     heading_known: bool
+    altitude_m: float
     fov_half_deg: float
     notes: tuple[str, ...] = ()
 
@@ -84,15 +85,17 @@ def _apply(document: dict, x_px, y_px, path: str) -> tuple[np.ndarray, np.ndarra
     return np.asarray(zenith, dtype=float), np.asarray(azimuth, dtype=float)
 
 
-def field_setup(data: FieldData, *, site: Site | None = None, heading_deg: float | None = None,
+def field_setup(data: FieldData, *, site: Site | None = None, altitude_m: float | None = None,
+                heading_deg: float | None = None,
                 roll_deg: float | None = None, pitch_deg: float | None = None, pressure_hpa: float | None = None,
                 temperature_c: float | None = None, delta_t_s: float | None = None,
                 fov_half_deg: float | None = None, calibration: dict | None = None) -> FieldSetup:
     """The site, the air and the mount: the options first, then the file's header comments."""
     meta = data.metadata
     notes = []
+    altitude = altitude_m if altitude_m is not None else meta.get("altitude_m", 0.0)
     if site is None and "latitude_deg" in meta and "longitude_deg" in meta:
-        site = Site(meta["latitude_deg"], meta["longitude_deg"], meta.get("altitude_m", 0.0))
+        site = Site(meta["latitude_deg"], meta["longitude_deg"], altitude)
 
     def pick(option, key, default=None):
         return option if option is not None else meta.get(key, default)
@@ -119,7 +122,8 @@ def field_setup(data: FieldData, *, site: Site | None = None, heading_deg: float
     fov = float(fov if fov is not None else DEFAULT_SENSOR.fov_half_deg)
     mount = Mount(heading_deg=0.0 if heading is None else heading, roll_deg=roll or 0.0, pitch_deg=pitch or 0.0)
     return FieldSetup(site=site, atmosphere=atmosphere, mount=mount, heading_known=heading is not None,
-                      fov_half_deg=fov, notes=tuple(notes))
+                      altitude_m=site.altitude_m if site is not None else altitude, fov_half_deg=fov,
+                      notes=tuple(notes))
 
 
 def analyse_field(data: FieldData, calibration: dict | None = None, *, heading: str = "file", level: str = "file",
@@ -176,8 +180,7 @@ def analyse_field(data: FieldData, calibration: dict | None = None, *, heading: 
         # the readings of a clear Sun inside the sensor's field, by the sensor's own angle: the file's site (which
         # may be wrong: that is why one locates) chooses nothing
         use = valid & ~cloudy & (zenith <= setup.fov_half_deg)
-        altitude = setup.site.altitude_m if setup.site is not None else 0.0
-        fix = locate(data.t_s[use], zenith[use], azimuth[use], altitude_m=altitude, atmosphere=setup.atmosphere,
+        fix = locate(data.t_s[use], zenith[use], azimuth[use], altitude_m=setup.altitude_m, atmosphere=setup.atmosphere,
                      mount=setup.mount, level="fit" if level == "fit" else "given", sigma_deg=sigma_deg,
                      level_sd_deg=level_sd_deg)
     return FieldAnalysis(data=data, setup=setup, zenith_deg=zenith, azimuth_deg=azimuth, cloudy=cloudy,
