@@ -2,8 +2,8 @@
 
 `sunpos` prints SPA's apparent position; `record` reads a real sensor outdoors, `simulate` a simulated field day of
 a sensor, both through its driver (:mod:`bench.field_run`, :mod:`drivers.sim.field`); `compare` sets a field CSV's
-readings against SPA; `locate` finds the site and the heading from the Sun's track. Bad input ends in one stderr line and exit code 2
-(`cli_common.user_errors`).
+readings against SPA; `locate` finds the site and the heading from the Sun's track. Bad input ends in one stderr
+line and exit code 2 (`cli_common.user_errors`).
 """
 
 from __future__ import annotations
