@@ -562,6 +562,18 @@ def client_hints(kind: str, url: str, pty: str | None) -> list[str]:
     return lines
 
 
+def _stop_on_signals() -> None:
+    """Ctrl-C stops the servers, whatever this process inherited: a shell starts a background job with SIGINT
+    ignored, and Python then never raises KeyboardInterrupt (a CI runner's `cmd &` did); a SIGTERM stops them too."""
+    import signal
+
+    def stop(signum, frame):
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, stop)
+
+
 @commands.command("sim")
 @user_errors
 def serve_simulators(
@@ -606,6 +618,7 @@ def serve_simulators(
             raise BenchFileError(f"--indi-compatible applies to the lx200 table, not {sim.table} (--table lx200)")
         sim = sim.model_copy(update={"lx200": sim.lx200.model_copy(update={"indi_compatible": True})})
     bench = SimBench(sim, time_scale=time_scale)
+    _stop_on_signals()
     server = bench.serve(host=host, base_port=port)
     bridges = {}
     try:

@@ -405,7 +405,8 @@ def test_an_unknown_header_comment_is_refused_naming_its_line(tmp_path):
 
 def test_sim_serves_the_chosen_table_and_says_how_clients_connect(tmp_path):
     """`sunbench sim --table smc100`: `role url` lines (what scripts parse), each followed by how known clients
-    connect; the driver then homes and moves the served SMC100 over TCP."""
+    connect; the driver then homes and moves the served SMC100 over TCP. Ctrl-C stops it even when it was started
+    with SIGINT ignored, as a shell starts a background job (`sunbench sim &`, a CI runner's)."""
     import signal
 
     from clitools import ENV, SUNBENCH, read_sim_listing
@@ -415,7 +416,8 @@ def test_sim_serves_the_chosen_table_and_says_how_clients_connect(tmp_path):
 
     proc = subprocess.Popen([str(SUNBENCH), "sim", "--table", "smc100", "--source", "led", "--time-scale", "0",
                              "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
-                            cwd=tmp_path, stdin=subprocess.DEVNULL)
+                            cwd=tmp_path, stdin=subprocess.DEVNULL,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
     try:
         urls, hints = read_sim_listing(proc.stdout)
         assert set(urls) == {"table-azimuth", "table-zenith", "led", "sensor"}, (urls, proc.stderr.read())
