@@ -236,7 +236,8 @@ def _f(value, digits: int = 4) -> str:
 
 
 def _analysis(data_csv: Path, cal: Optional[Path], *, lat, lon, alt, heading, roll, pitch, pressure, temperature,
-              delta_t, fov, heading_mode: str, level_mode: str, do_locate: bool, sigma=None, level_sd=None):
+              delta_t, fov, heading_mode: str, level_mode: str, do_locate: bool, sigma=None, level_sd=None,
+              fit_until=None):
     from .datafile import load_calibration_json
     from .field_analysis import analyse_field, field_setup
     from .field_datafile import read_field_csv
@@ -253,7 +254,8 @@ def _analysis(data_csv: Path, cal: Optional[Path], *, lat, lon, alt, heading, ro
                         temperature_c=temperature, delta_t_s=delta_t, fov_half_deg=fov, calibration=calibration)
     return analyse_field(data, calibration, heading=heading_mode, level=level_mode,
                          do_compare=not do_locate or setup.site is not None, do_locate=do_locate, setup=setup,
-                         sigma_deg=sigma, level_sd_deg=level_sd)
+                         sigma_deg=sigma, level_sd_deg=level_sd,
+                         fit_until_s=None if fit_until is None else float(utc_seconds([fit_until])[0]))
 
 
 def _print_lines(title: str, lines) -> None:
@@ -290,6 +292,9 @@ def compare(
                                                                    "azimuth error becomes relative."),
     roll: Optional[float] = _COMMON["roll"], pitch: Optional[float] = _COMMON["pitch"],
     level_fit: bool = _COMMON["level_fit"],
+    fit_until: Optional[str] = typer.Option(None, "--fit-until", help="Fit the heading (and level) over the clear "
+                                                                     "readings before this UTC time only (seed 003: "
+                                                                     "the clear morning, before 12:00)."),
     pressure: Optional[float] = _COMMON["pressure"], temperature: Optional[float] = _COMMON["temperature"],
     delta_t: Optional[float] = _COMMON["delta_t"], fov: Optional[float] = _COMMON["fov"],
     plots: Optional[Path] = _COMMON["plots"], json_out: Optional[Path] = _COMMON["json_out"],
@@ -300,7 +305,7 @@ def compare(
     analysis = _analysis(data_csv, cal, lat=lat, lon=lon, alt=alt, heading=heading, roll=roll, pitch=pitch,
                          pressure=pressure, temperature=temperature, delta_t=delta_t, fov=fov,
                          heading_mode="fit" if heading_fit else "file", level_mode="fit" if level_fit else "file",
-                         do_locate=False)
+                         do_locate=False, fit_until=fit_until)
     c = analysis.comparison
     document = analysis_document(analysis, name=data_csv.name)
     stats = document["comparison"]["stats"]

@@ -21,7 +21,7 @@ from calibration.field.locate import SiteFix, distance_km, locate
 from calibration.field.sky import Atmosphere, Mount, Site
 
 from .datafile import DataFileError
-from .field_datafile import FieldData, read_field_csv
+from .field_datafile import FieldData, iso_utc, read_field_csv
 
 MODES = ("file", "fit")
 #: The dark level under a spot's peak, by the calibration's family, for the brightness flag [DN]: the CMOS
@@ -128,12 +128,15 @@ def field_setup(data: FieldData, *, site: Site | None = None, altitude_m: float 
 
 def analyse_field(data: FieldData, calibration: dict | None = None, *, heading: str = "file", level: str = "file",
                   do_compare: bool = True, do_locate: bool = False, setup: FieldSetup | None = None,
-                  sigma_deg: float | None = None, level_sd_deg: float | None = None) -> FieldAnalysis:
+                  sigma_deg: float | None = None, level_sd_deg: float | None = None,
+                  fit_until_s: float | None = None) -> FieldAnalysis:
     """Directions, cloud flags, the comparison with the Sun and (with `do_locate`) the site from the track.
 
     `heading`, `level`: ``"file"`` takes them from the header (or the options in `setup`), ``"fit"`` fits them
     (an unknown heading makes the azimuth error relative; seed 003 §5 removed a constant offset). Without a
     heading the comparison fits it.
+    `fit_until_s` (Unix s): fit them over the clear readings before that time only (seed 003 §5 removed the
+    offset over the clear interval before 12:00).
     """
     if heading not in MODES or level not in MODES:
         raise FieldDataError(f"heading and level are one of {MODES}, got {heading!r}, {level!r}")
@@ -166,11 +169,16 @@ def analyse_field(data: FieldData, calibration: dict | None = None, *, heading: 
         fit_heading = heading == "fit" or not setup.heading_known
         if not setup.heading_known and heading == "file":
             notes.append("the file gives no heading: it is fitted")
+        fit_mask = None
+        if fit_until_s is not None:
+            fit_mask = (data.t_s <= fit_until_s) & ~cloudy & (zenith <= setup.fov_half_deg)
+            notes.append(f"heading and level fitted over the {int((fit_mask & valid).sum())} clear readings before "
+                         f"{iso_utc(fit_until_s)}")
         try:
             comparison = compare_with_sun(data.t_s, zenith, azimuth, setup.site, setup.mount, setup.atmosphere,
                                           heading="fit" if fit_heading else "given",
                                           level="fit" if level == "fit" else "given", cloudy=cloudy, invalid=~valid,
-                                          fov_half_deg=setup.fov_half_deg)
+                                          fov_half_deg=setup.fov_half_deg, fit_mask=fit_mask)
         except FieldDataError as exc:
             if not do_locate:
                 raise

@@ -223,3 +223,20 @@ def test_record_writes_every_row_as_it_reads(tmp_path):
             sink.append({"time_utc": 1569729497.0 + i, "x_px": 1.0 + i, "y_px": 2.0, "status": "ok"})
             assert len(read_field_csv(path)) == i + 1  # on disk before the file is closed
     assert read_field_csv(path).metadata == {"latitude_deg": 50.0}
+
+
+def test_compare_fits_the_heading_over_the_clear_morning_as_seed_003_did(day):
+    """`--fit-until`: the offset removed over the clear interval before local noon (05:00 UTC) only, as seed 003 §5
+    did; the heading so fitted is the one the whole clear day gives, within its stated uncertainty's few σ."""
+    morning = invoke("field", "compare", day / "day.csv", "--cal", day / "cal.json", "--heading-fit", "--level-fit",
+                     "--fit-until", "2019-09-29T05:00:00Z")
+    whole = invoke("field", "compare", day / "day.csv", "--cal", day / "cal.json", "--heading-fit", "--level-fit")
+    assert morning.exit_code == 0 and whole.exit_code == 0, morning.output
+    text = flat(morning.output)
+    used = int(re.search(r"fitted over the (\d+) clear readings before 2019-09-29T05:00:00", text)[1])
+    assert 0 < used < int(re.search(r"least squares over (\d+) samples", flat(whole.output))[1])
+    heading_morning = float(re.search(r"heading ([\d.]+)° \(fitted\)", morning.output)[1])
+    heading_whole = float(re.search(r"heading ([\d.]+)° \(fitted\)", whole.output)[1])
+    assert abs(heading_morning - heading_whole) < 0.05
+    assert_user_error(invoke("field", "compare", day / "day.csv", "--cal", day / "cal.json", "--heading-fit",
+                             "--fit-until", "noon"), "ISO 8601")
