@@ -20,6 +20,7 @@ from calibration.field.compare import FieldComparison, compare_with_sun
 from calibration.field.locate import SiteFix, distance_km, locate
 from calibration.field.sky import Atmosphere, Mount, Site
 
+from .camera_datafile import is_camera_document
 from .datafile import DataFileError
 from .field_datafile import FieldData, iso_utc, read_field_csv
 
@@ -73,7 +74,7 @@ def _apply(document: dict, x_px, y_px, path: str) -> tuple[np.ndarray, np.ndarra
     """Spots through a calibration document (the CMOS methods, or a camera model)."""
     if not isinstance(document, dict):
         raise CalibrationFormatError("a calibration file holds a JSON object")
-    if document.get("family") == "camera" or document.get("kind") == "camera":
+    if is_camera_document(document):
         from calibration.camera import camera_from_document, zenith_azimuth
         model = camera_from_document(document)
         return zenith_azimuth(model, np.column_stack([x_px, y_px]))
@@ -153,7 +154,7 @@ def analyse_field(data: FieldData, calibration: dict | None = None, *, heading: 
     brightness = None
     if "peak_dn" in data.numbers and "exposure_ms" in data.numbers:
         try:
-            family = "camera" if isinstance(calibration, dict) and calibration.get("family") == "camera" else "cmos"
+            family = "camera" if is_camera_document(calibration) else "cmos"
             brightness = brightness_cloud_flags(np.where(valid, data.numbers["peak_dn"], np.nan),
                                                 data.numbers["exposure_ms"], zenith, background_dn=DARK_DN[family])
             cloudy |= brightness.cloudy
