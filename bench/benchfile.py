@@ -48,7 +48,7 @@ from .yamlfile import read_yaml
 SIM_URL = "sim"
 TABLE_KINDS = ("apt", "smc100", "lx200", "manual")
 SOURCE_KINDS = ("xenon", "led")
-SENSOR_KINDS = ("cmos", "qd", "camera")
+SENSOR_KINDS = ("cmos", "qd", "camera", "css")
 #: The sensor kinds a simulated bench can simulate (its ``simulation.family``): every kind (the camera in-process,
 #: drivers/sim/camera.py).
 SIMULATED_SENSOR_KINDS = SENSOR_KINDS
@@ -314,7 +314,17 @@ class QdSensorConfig(_Strict):
     timeout_s: float = Field(1.0, gt=0)
 
 
-SensorConfig = Annotated[Union[CmosSensorConfig, CameraSensorConfig, QdSensorConfig], Field(discriminator="kind")]
+class CssSensorConfig(_Strict):
+    """The coarse-sun-sensor head of seed 000 (18 channels: UV, visible and IR detectors on a cube's six faces;
+    framed binary protocol, drivers.css_protocol)."""
+
+    kind: Literal["css"] = "css"
+    url: Url = None
+    timeout_s: float = Field(1.0, gt=0)
+
+
+SensorConfig = Annotated[Union[CmosSensorConfig, CameraSensorConfig, QdSensorConfig, CssSensorConfig],
+                         Field(discriminator="kind")]
 
 
 class DevicesConfig(_Strict):
@@ -491,7 +501,7 @@ class BenchFile(_Strict):
                     (("devices", "source", "shutter_url"), source.shutter_url)]
         else:
             out.append((("devices", "source", "url"), source.url))
-        if self.devices.sensor.kind in ("cmos", "qd"):
+        if self.devices.sensor.kind in ("cmos", "qd", "css"):
             out.append((("devices", "sensor", "url"), self.devices.sensor.url))
         else:
             out.append((("devices", "sensor", "source"), self.devices.sensor.source))

@@ -2,7 +2,8 @@
 
 :func:`connect_bench` is the one place that knows how each driver is opened — its line settings, its
 initialisation, whether it homes — so the run engine only sees a :class:`~drivers.interfaces.RotaryTable`,
-a :class:`~drivers.interfaces.SunSimulator` and an :class:`~drivers.interfaces.ImageSensor`.
+a :class:`~drivers.interfaces.SunSimulator` and the sensor (an :class:`~drivers.interfaces.ImageSensor`, a
+:class:`~drivers.interfaces.QuadrantSensor` or a :class:`~drivers.interfaces.CoarseSunHead`).
 
 Simulated devices. When the file has a ``simulation:`` section, a :class:`~drivers.sim.bench.SimBench` is
 built and served in-process; a device without a URL (or ``url: sim``) is opened at its ``sim://`` URL. The
@@ -25,8 +26,17 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 from drivers.cmos_sensor import CmosSunSensor
+from drivers.css_sensor import CssHead
 from drivers.errors import DeviceError
-from drivers.interfaces import ImageSensor, Limits, QuadrantSensor, RotaryTable, SunSimulator, TwoAxisTable
+from drivers.interfaces import (
+    CoarseSunHead,
+    ImageSensor,
+    Limits,
+    QuadrantSensor,
+    RotaryTable,
+    SunSimulator,
+    TwoAxisTable,
+)
 from drivers.manual import AskCallback, ManualAxis, console_ask
 from drivers.meade import LX200Table
 from drivers.newport_smc100 import Smc100Axis
@@ -50,6 +60,7 @@ LX200_BAUDRATE = 9600  # 8N1, no handshake (drivers/meade.py, anchors-protocols 
 SMC100_SERIAL = {"baudrate": 57600, "xonxoff": True}  # drivers/newport_smc100.py, anchors-protocols §3.1
 CMOS_BAUDRATE = 921600  # RS-485 adapter of the module (drivers/cmos_sensor.py)
 QD_BAUDRATE = 115200  # the QD module's UART (drivers/qd_protocol.py)
+CSS_BAUDRATE = 115200  # the CSS head's UART (drivers/css_protocol.py)
 APT_DWELL_S = 0.05  # RTS-cycle dwell of the APT init on hardware (anchors-protocols §2.1)
 SMC100_RESET_WAIT_S = 1.0  # wait after RS before the controller answers (pymeasure)
 
@@ -84,7 +95,7 @@ class BenchDevices:
     ----------
     table : RotaryTable
     source : SunSimulator
-    sensor : ImageSensor or QuadrantSensor
+    sensor : ImageSensor, QuadrantSensor or CoarseSunHead
         The sensor of the bench's family (bench.families).
     identities : dict of str to str
         ``table``, ``source``, ``sensor`` → what the device reported as its identity, for run provenance.
@@ -96,7 +107,7 @@ class BenchDevices:
 
     table: RotaryTable
     source: SunSimulator
-    sensor: ImageSensor | QuadrantSensor
+    sensor: ImageSensor | QuadrantSensor | CoarseSunHead
     identities: dict[str, str]
     simulated: bool
     sim: SimBench | None = None
@@ -253,7 +264,7 @@ class _Connector:
             return LedSource(supply, config.current_a, voltage_v=config.voltage_v, warmup_s=warmup_s)
 
     # -- sensor ---------------------------------------------------------------------------------------
-    def sensor(self) -> ImageSensor | QuadrantSensor:
+    def sensor(self) -> ImageSensor | QuadrantSensor | CoarseSunHead:
         config = self.file.devices.sensor
         if config.kind == "camera":
             if config.source is None:
@@ -276,6 +287,14 @@ class _Connector:
                 sensor.identify()  # a silent module fails here, named
             self.where["sensor"] = url
             return sensor
+        if config.kind == "css":
+            with _connecting("sensor", url):
+                port = open_port(url, baudrate=CSS_BAUDRATE, timeout_s=config.timeout_s)
+                self.closers.append(port.close)
+                head = CssHead(port, retries=LINK_RETRIES)
+                head.identify()  # a silent head fails here, named
+            self.where["sensor"] = url
+            return head
         with _connecting("sensor", url):
             port = open_port(url, baudrate=CMOS_BAUDRATE, timeout_s=config.timeout_s)
             self.closers.append(port.close)

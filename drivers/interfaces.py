@@ -1,8 +1,8 @@
 """The small interfaces the bench talks to: a rotary table, a sun simulator, a sun sensor.
 
 Every concrete driver (Meade LX200, Thorlabs APT, Newport SMC100, manual axis; Oriel 69907, SCPI LED supply;
-CMOS pinhole module, USB camera; quadrant-photodiode module) implements one of these, so the run engine never
-knows which hardware — or which simulator — it drives.
+CMOS pinhole module, USB camera; quadrant-photodiode module; coarse-sun-sensor head) implements one of these, so
+the run engine never knows which hardware — or which simulator — it drives.
 """
 
 from __future__ import annotations
@@ -389,4 +389,100 @@ class QuadrantSensor(ABC):
 
     def temperature_c(self) -> float:
         """Die temperature [°C]."""
+        return self.temperature_status().temperature_c
+
+
+@dataclass(frozen=True)
+class CssHeadReading:
+    """One READ of a coarse-sun-sensor head (seed 000): one signal per detector, and the head's temperature.
+
+    Per-channel fields are in the head's channel order (``channels``): ``<face>_<type>``, face-major — faces px,
+    py, mx, my, pz, mz (outward normals +X, +Y, −X, −Y, +Z, −Z; the thesis' faces 1 … 6), types uv (EPD-365 UV
+    photodiode), vis (BPW 21 visible photodiode), ir (TPS 230 thermopile) within each face (drivers.css_protocol).
+
+    Attributes
+    ----------
+    channels : tuple of 18 str
+        ``px_uv``, ``px_vis``, ``px_ir``, ``py_uv`` … ``mz_ir``.
+    counts : tuple of 18 float
+        Mean raw ADC reading of each channel over the samples [counts].
+    signals : tuple of 18 float
+        The same, pedestal removed and converted: photocurrent [A] for uv and vis, voltage [V] for ir. Offsets
+        (dark current, front-end offset, the thermopile's scene) are *not* removed: that is the calibration's job.
+    saturated : tuple of 18 bool
+        A sample of the channel was at the ADC's full scale: its signal is a lower bound.
+    under_range : tuple of 18 bool
+        A sample of the channel was at 0 counts: its signal is an upper bound.
+    temperature_c : float
+        Head temperature from the module's thermometer, mean over the read [°C].
+    n_samples : int
+        Samples averaged.
+    sample_counter : int
+        Samples the module has taken since power-up, this read's included.
+    plate_on : bool
+        The head's thermal plate was regulating.
+    plate_settled : bool
+        The head was within the module's tolerance of the plate's setpoint.
+    """
+
+    channels: tuple[str, ...]
+    counts: tuple[float, ...]
+    signals: tuple[float, ...]
+    saturated: tuple[bool, ...]
+    under_range: tuple[bool, ...]
+    temperature_c: float
+    n_samples: int
+    sample_counter: int
+    plate_on: bool = False
+    plate_settled: bool = False
+
+    @property
+    def any_saturated(self) -> bool:
+        return any(self.saturated)
+
+    @property
+    def units(self) -> tuple[str, ...]:
+        """The unit of each signal: "A" (uv, vis photodiodes) or "V" (ir thermopile)."""
+        return tuple("V" if name.endswith("_ir") else "A" for name in self.channels)
+
+    def signal(self, channel: str) -> float:
+        """The signal of `channel` (``"px_vis"`` …) [A or V]; KeyError naming the channels otherwise."""
+        try:
+            return self.signals[self.channels.index(channel)]
+        except ValueError:
+            raise KeyError(f"no channel {channel!r} (channels: {', '.join(self.channels)})") from None
+
+    def as_dict(self) -> dict[str, float]:
+        """Channel name → signal [A or V], in channel order."""
+        return dict(zip(self.channels, self.signals))
+
+
+class CoarseSunHead(ABC):
+    """A coarse sun sensor head that delivers one signal per detector (the UV/visible/IR cube of seed 000) and has
+    a thermal plate that holds its temperature."""
+
+    name: str
+    #: True when :meth:`identify`'s serial is the sensor's own (the run checks it is the sensor it expects)
+    reports_serial: bool = False
+
+    @abstractmethod
+    def identify(self) -> SensorIdentity: ...
+
+    @abstractmethod
+    def read(self, average: int = 16) -> CssHeadReading:
+        """One reading, the mean of `average` samples of every channel (16: the thesis' ADC averaging)."""
+
+    @abstractmethod
+    def set_temperature_setpoint_c(self, setpoint_c: float | None) -> TecStatus:
+        """Regulate the head at `setpoint_c` [°C]; None switches the thermal plate off."""
+
+    @abstractmethod
+    def temperature_status(self) -> TecStatus: ...
+
+    def temperature_setpoint_c(self) -> float | None:
+        """The plate's setpoint [°C]; None when it is off."""
+        return self.temperature_status().setpoint_c
+
+    def temperature_c(self) -> float:
+        """Head temperature [°C]."""
         return self.temperature_status().temperature_c

@@ -221,6 +221,16 @@ def test_the_qd_simulator_imports_no_calibration():
     assert not bad, "\n".join(bad)
 
 
+def test_the_css_simulator_imports_no_calibration():
+    """The CSS head's simulator and its physics (drivers/sim/css_*.py) are their own: calibration/css fits what
+    they make, so they take nothing of calibration/ (not even the channel names: css_optics knows its own)."""
+    paths = sorted((ROOT / "drivers" / "sim").glob("css_*.py"))
+    assert ROOT / "drivers" / "sim" / "css_head.py" in paths, "drivers/sim/css_head.py is missing"
+    bad = [f"{_where(p)}:{line} imports {m}" for p in paths for m, line in _imported_modules(p)
+           if m.split(".")[0] == "calibration"]
+    assert not bad, "\n".join(bad)
+
+
 def test_the_import_reader_resolves_relative_and_nested_imports(tmp_path):
     pkg = tmp_path / "top" / "sub"
     pkg.mkdir(parents=True)
@@ -328,6 +338,8 @@ class WireDriver:
 WIRE_DRIVERS = {
     "drivers/cmos_sensor.py:CmosSunSensor":
         WireDriver("drivers/sim/cmos_sensor.py", "CmosSensorSimulator", "tests/drivers/test_cmos_sensor.py"),
+    "drivers/css_sensor.py:CssHead":
+        WireDriver("drivers/sim/css_head.py", "CssHeadSimulator", "tests/drivers/test_css_sensor.py"),
     "drivers/meade.py:LX200Table":
         WireDriver("drivers/sim/lx200.py", "LX200Simulator", "tests/drivers/test_meade.py"),
     "drivers/newport_smc100.py:Smc100Axis":
@@ -480,6 +492,7 @@ FAMILY_PARTS = {
     "cmos": FamilyParts("calibration/models", "drivers/sim/cmos_sensor.py"),
     "qd": FamilyParts("calibration/qd", "drivers/sim/qd_sensor.py"),
     "camera": FamilyParts("calibration/camera", "drivers/sim/camera.py"),
+    "css": FamilyParts("calibration/css", "drivers/sim/css_head.py"),
 }
 
 #: Families whose simulator is not a WIRE_DRIVERS simulator, each named with the reason it stands (the rule holds

@@ -20,6 +20,8 @@ from . import registry
 from .backdoor import BenchFaults
 from .camera import CameraSimConfig, CameraTruth, SimulatedCamera, camera_fleet_truth
 from .clock import SimClock
+from .css_head import CssHeadConfig, css_fleet_truth
+from .css_optics import CssTruth
 from .lamp import LED, XENON
 from .motion import AxisSpec
 from .qd_optics import QdTruth, qd_fleet_truth
@@ -146,8 +148,8 @@ class SimBenchConfig(_Strict):
 
     time_scale: float = Field(1.0, ge=0)
     seed: int = 0
-    # the sensor under test: CMOS pinhole (seed 003), QD (seed 002) or camera (seed 001)
-    family: Literal["cmos", "qd", "camera"] = "cmos"
+    # the sensor under test: CMOS pinhole (seed 003), QD (seed 002), camera (seed 001) or CSS head (seed 000)
+    family: Literal["cmos", "qd", "camera", "css"] = "cmos"
     table: Literal["apt", "lx200", "smc100"] = "apt"
     axis_order: Literal["azimuth-on-zenith", "zenith-on-azimuth"] = "azimuth-on-zenith"
     source: Literal["xenon", "led"] = "xenon"
@@ -155,6 +157,7 @@ class SimBenchConfig(_Strict):
     sensor: SensorConfig = SensorConfig()
     qd: QdSensorConfig = QdSensorConfig()  # the QD module, used when `family` is qd
     camera: CameraSimConfig = CameraSimConfig()  # the camera sun sensor, used when `family` is camera
+    css: CssHeadConfig = CssHeadConfig()  # the coarse-sun-sensor head, used when `family` is css
     mount: MountConfig = MountConfig()
     azimuth_axis: AxisConfig = AxisConfig()
     zenith_axis: AxisConfig = AxisConfig(hard_limits_deg=(-95.0, 95.0))  # the defaults are examples/bench-sim.yaml
@@ -173,7 +176,8 @@ class SimBench:
     world : SimWorld
     devices : dict of str to SimDevice
         By role: ``table`` (LX200) or ``table-azimuth`` and ``table-zenith`` (APT, SMC100), ``lamp`` and
-        ``shutter`` (xenon) or ``led`` (LED), ``sensor`` (a CMOS or QD module): the devices served on a wire.
+        ``shutter`` (xenon) or ``led`` (LED), ``sensor`` (a CMOS or QD module, a CSS head): the devices served on
+        a wire.
     camera : SimulatedCamera or None
         The camera sun sensor of a camera bench (``family: camera``): an in-process
         :class:`~drivers.interfaces.ImageSensor`, not served on a wire (:mod:`drivers.sim.camera` says why);
@@ -232,12 +236,13 @@ class SimBench:
         """Put the bench in a named set-up (:data:`drivers.sim.backdoor.SETUPS`: ``normal``, ``lamp_fault`` …)."""
         self.faults.setup(name)
 
-    def mount_sensor(self, serial: str) -> SensorTruth | QdTruth | CameraTruth:
+    def mount_sensor(self, serial: str) -> SensorTruth | QdTruth | CameraTruth | CssTruth:
         """Put the sensor of serial `serial` on the bench (what the operator does between the sensors of a
         fleet): the configured sensor for its own serial, any other built from its serial around it
         (:func:`~drivers.sim.world.fleet_sensor`; a QD module: :func:`~drivers.sim.qd_optics.qd_fleet_truth`,
-        mounted on the QD simulator, powered up fresh; a camera: :func:`~drivers.sim.camera.camera_fleet_truth`).
-        The module then identifies itself with that serial."""
+        mounted on the QD simulator, powered up fresh; a camera: :func:`~drivers.sim.camera.camera_fleet_truth`;
+        a CSS head: :func:`~drivers.sim.css_head.css_fleet_truth`, mounted on the head's simulator, powered up
+        fresh). The module then identifies itself with that serial."""
         if self.camera is not None:
             truth = camera_fleet_truth(self.config.camera.truth(), serial)
             self.camera.mount(truth)
@@ -246,6 +251,10 @@ class SimBench:
             truth = qd_fleet_truth(self.config.qd.truth(), serial)
             self.devices["sensor"].mount(truth)
             return truth
+        if self.config.family == "css":
+            head = css_fleet_truth(self.config.css, serial)
+            self.devices["sensor"].mount(head)
+            return head
         self.world.sensor = fleet_sensor(self.config.sensor.truth(), serial)
         return self.world.sensor
 
@@ -278,6 +287,9 @@ class SimBench:
         if self.config.family == "qd":
             from .qd_sensor import QdSensorSimulator
             return {"sensor": QdSensorSimulator(self.world, self.config.qd)}
+        if self.config.family == "css":
+            from .css_head import CssHeadSimulator
+            return {"sensor": CssHeadSimulator(self.world, self.config.css)}
         from .cmos_sensor import CmosSensorSimulator
         return {"sensor": CmosSensorSimulator(self.world)}
 

@@ -426,8 +426,8 @@ class CssOptics:
 class ChannelFaults:
     """Faults of the head's channels (back door), keyed by channel name.
 
-    stuck: the channel's ADC repeats this code; dead: the detector is open (the channel reads its offset and
-    noise only); saturated: the amplifier is latched at its rail (full scale)."""
+    stuck: the channel's ADC repeats this code; dead: the detector is open (the channel reads its front end's offset
+    and noise only); saturated: the amplifier is latched at its rail (full scale)."""
 
     stuck: dict[str, int] = field(default_factory=dict)
     dead: set[str] = field(default_factory=set)
@@ -465,12 +465,10 @@ class CssChannels:
         return np.array(out)
 
     def counts(self, signals, faults: ChannelFaults | None = None) -> np.ndarray:
-        """ADC codes of noisy signals (..., 18), clipped to the range; faults applied."""
-        s = np.array(signals, float)
+        """ADC codes of noisy signals (..., 18), clipped to the range; the stuck and saturated faults applied (a dead
+        detector loses its light before its front end: the caller leaves it out of `signals`)."""
+        s = np.asarray(signals, float)
         pedestal = self.pedestals()
-        if faults is not None:
-            for name in faults.dead:
-                s[..., CHANNELS.index(name)] = 0.0
         codes = np.clip(np.rint(pedestal + s / self.units_per_count()), 0, self.full_scale_counts).astype(np.int64)
         if faults is not None:
             for name in faults.saturated:
