@@ -11,6 +11,7 @@ from typing import Literal, Union, get_args, get_origin
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from calibration.css.diode import RESPONSES as CSS_METHODS  # the CSS family's fits: the detectors' response law
 from calibration.models import METHODS
 from calibration.procedure import (
     SEED003_AZIMUTH_STEP_DEG,
@@ -248,6 +249,51 @@ class CameraGridProcedure(_Strict):
         return 1 + self.rings * (self.azimuths + 4)
 
 
+class CssSweepProcedure(_Strict):
+    """A coarse-sun-sensor head's bench calibration (seed 000 digest §8.3 items 7–8, 10): a plan that sweeps each
+    face through its field. For each face, rings of incidence around its normal from 0 to `field_deg` every
+    `step_deg` at up to `around` azimuths about the normal (fewer at the centre; directions two faces share measured
+    once: :mod:`calibration.css.sweep`), every channel read at each; each direction set through the table's
+    kinematics (the whole sphere: faces other than +z face the source at zeniths beyond 90°). At each of the head's
+    thermal-plate temperatures `temperatures_c` (none: no thermal control) the dark readings with the shutter
+    closed, then the full sweep at the first temperature and a reduced one (rings every `reduced_step_deg` ×
+    `reduced_around`) at the others, enough for the temperature coefficients; `check_directions` directions spread
+    over the sphere (Halton), measured at the first temperature and never fitted."""
+
+    field_deg: float = Field(88.0, gt=5, le=90)
+    step_deg: float = Field(5.0, ge=0.5, le=45)
+    around: int = Field(8, ge=3, le=72)
+    repeats: int = Field(2, ge=1, le=100)
+    temperatures_c: tuple[float, ...] = Field((25.0, 10.0, 40.0), max_length=20)
+    tolerance_c: float = Field(0.2, gt=0, le=5)
+    dark_repeats: int = Field(8, ge=1, le=100)
+    reduced_step_deg: float = Field(30.0, ge=1, le=90)
+    reduced_around: int = Field(4, ge=3, le=72)
+    check_directions: int = Field(24, ge=0, le=500)
+
+    @field_validator("temperatures_c")
+    @classmethod
+    def _temperatures(cls, v):
+        if any(not -40 <= t <= 85 for t in v):
+            raise ValueError("the head's thermal plate is set within −40…85 °C")
+        if len(set(v)) != len(v):
+            raise ValueError("a temperature is listed twice")
+        return v
+
+    def points(self) -> int:
+        """The plan's points: the full sweep, the check directions, a reduced sweep at every further temperature and
+        one dark point per temperature (the ambient one without thermal control)."""
+        from calibration.css.sweep import sweep_size_bound, sweep_vectors
+
+        bound = sweep_size_bound(self.field_deg, self.step_deg, self.around)
+        if bound > MAX_POINTS_PER_SENSOR:
+            return bound  # beyond the cap anyway: not worth computing
+        temperatures = max(1, len(self.temperatures_c))
+        reduced = len(sweep_vectors(self.field_deg, self.reduced_step_deg, self.reduced_around, edge=False))
+        return (len(sweep_vectors(self.field_deg, self.step_deg, self.around)) + self.check_directions
+                + (temperatures - 1) * reduced + temperatures)
+
+
 class Alignment(_Strict):
     """Caliper readings of the bench alignment (seed 003 §4.1), checked before anything moves.
 
@@ -266,7 +312,8 @@ class Campaign(_Strict):
     """A campaign: a procedure run on one sensor or on a fleet (a flight batch is ten)."""
 
     name: str = Field(min_length=1)
-    plan: Literal["seed003", "grid", "physical", "qd-grid", "qd-physical", "qd-dark", "camera-grid"] = "seed003"
+    plan: Literal["seed003", "grid", "physical", "qd-grid", "qd-physical", "qd-dark", "camera-grid",
+                  "css-sweep"] = "seed003"
     operator: str = "unknown"
     sensors: tuple[str, ...] = Field(("SIM-0001",), min_length=1, max_length=MAX_SENSORS)
     frames: Literal["roi", "full", "none"] = "roi"
@@ -277,8 +324,11 @@ class Campaign(_Strict):
     qd_physical: QdPhysicalProcedure = QdPhysicalProcedure()
     qd_dark: QdDarkSweep = QdDarkSweep()
     camera_grid: CameraGridProcedure = CameraGridProcedure()
+    css_sweep: CssSweepProcedure = CssSweepProcedure()
     alignment: Alignment | None = None
-    methods: tuple[str, ...] | None = None  # the fits at the run's end; None: every method of the sensor family
+    # the fits at the run's end; None: every method of the sensor family (a CSS head: the kelly law alone, each law
+    # being a full fit with its held-out folds)
+    methods: tuple[str, ...] | None = None
 
     @field_validator("methods")
     @classmethod
@@ -286,7 +336,7 @@ class Campaign(_Strict):
         if v is not None:
             plan = info.data.get("plan", "seed003")
             known = (QD_METHODS if plan.startswith("qd-") else CAMERA_METHODS if plan.startswith("camera-")
-                     else tuple(METHODS))
+                     else CSS_METHODS if plan.startswith("css-") else tuple(METHODS))
             unknown = [m for m in v if m not in known]
             if unknown:
                 raise ValueError(f"unknown method(s) {unknown}; known for the {plan} plan: {list(known)}")
@@ -322,6 +372,8 @@ class Campaign(_Strict):
             return len(self.qd_dark.temperatures_c)
         if self.plan == "camera-grid":
             return self.camera_grid.points()
+        if self.plan == "css-sweep":
+            return self.css_sweep.points()
         return self.physical.max_points
 
 

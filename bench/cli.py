@@ -34,6 +34,7 @@ from .camera_datafile import (
     read_camera_frames,
 )
 from .cli_common import err, fmt, metrics_table, out, qd_metrics_table, user_errors
+from .css_datafile import css_header_from_document, is_css_document, read_css_calibration
 from .datafile import (
     DataFileError,
     calibration_document,
@@ -413,6 +414,125 @@ def fit_camera(
         out.print(f"C header written to {escape(str(header))}")
 
 
+def _sd(value, sd, digits: int = 4) -> str:
+    """`value ± sd` in compact notation (a fixed parameter: `value (fixed)`)."""
+    if value is None:
+        return "—"
+    text = f"{value:.{digits}g}"
+    return text + (" (fixed)" if sd is None else f" ± {sd:.2g}" if np.isfinite(sd) else " ± —")
+
+
+def css_diodes_table(document: dict) -> Table:
+    """A CSS calibration's detectors: each fitted parameter ± 1σ (seed 000 eq. 3.1 with a response law), the normal
+    as a body zenith and azimuth with its 1σ, the residual's χ²/dof against the noise; a faulty channel by its
+    fault."""
+    from calibration.css.diode import SHAPE_NAME
+
+    law = document["response"]
+    shape = SHAPE_NAME[law]
+    table = Table(title=f"Detectors ({law} law): m = S·(1 + c_T·ΔT)·R(n·s)·E(θ) + b + b_T·ΔT, ΔT = T − 25 °C; each "
+                        "fitted parameter ± 1σ", title_justify="left")
+    heads = ("channel", "S [A|V]", "b [A|V]", "normal θ, φ [°]", "± [°]", shape, "FOV θ_c [°]", "c_T [1/°C]",
+             "b_T [A|V/°C]", "χ²/dof")
+    for name in heads:
+        table.add_column(name, justify="left" if name == "channel" else "right")
+    for channel, entry in document["diodes"].items():
+        if not entry["valid"]:
+            table.add_row(channel, f"[red]left out: {escape(str(entry.get('fault')))}[/]", *[""] * (len(heads) - 2))
+            continue
+        p = entry["parameters"]
+        cell = {name: _sd(v["value"], v["sd"] if v.get("fitted") else None, 4 if name in ("scale", "fov_half_deg")
+                          else 3 if name in ("bias", shape) else 2) for name, v in p.items()}
+        normal = entry["normal"]
+        table.add_row(channel, cell["scale"], cell["bias"], f"{normal['zenith_deg']:.3f}, {normal['azimuth_deg']:.3f}",
+                      fmt(float("nan") if normal.get("sd_deg") is None else normal["sd_deg"], 3), cell[shape],
+                      "none" if p["fov_half_deg"]["value"] is None else cell["fov_half_deg"],
+                      cell["temp_coeff_per_c"], cell["bias_temp_coeff_per_c"],
+                      fmt(float("nan") if entry["fit"]["chi2_dof"] is None else entry["fit"]["chi2_dof"], 1))
+    return table
+
+
+def css_accuracy_table(metrics: dict) -> Table:
+    """The Sun's direction from a CSS calibration [°]: held out (interleaved folds of directions left out and
+    refitted), at the check directions (never fitted) and at the fitted directions."""
+    table = Table(title="The Sun's direction [°]: weighted least squares over the calibrated detectors",
+                  title_justify="left")
+    for name in ("scored", "readings", "degenerate", "RMS", "p95", "max", "RMS / stated 1σ"):
+        table.add_column(name, justify="left" if name == "scored" else "right")
+    for label, key in (("held out *", "held_out"), ("check directions", "check"), ("fitted directions", "at_nodes")):
+        m = metrics.get(key)
+        if not m:
+            table.add_row(label, *["—"] * 6)
+            continue
+        num = lambda v, d=4: fmt(float("nan") if v is None else v, d)  # noqa: E731
+        table.add_row(label, str(m["n_points"]), str(m["n_degenerate"]), num(m["rms_deg"]), num(m["p95_deg"]),
+                      num(m["max_deg"]), num(m["normalised_rms"], 1))
+    table.caption = ("* = the calibration's held-out figure; degenerate: fewer than two non-coplanar faces lit (the "
+                     "direction is not determined, not scored)")
+    table.caption_justify = "left"
+    return table
+
+
+@fit_app.command("css")
+@user_errors
+def fit_css_command(
+    data_csv: Path = typer.Argument(..., help="CSS bench data CSV (see the README)."),
+    output: Optional[Path] = typer.Option(None, "--output", "-o", help="Write the calibration JSON here."),
+    response: str = typer.Option("kelly", "--response", "-r", metavar="kelly|power",
+                                 help="Every detector's angular response law: kelly (Basilisk's cos·(1 − e^(−cos²/κ)))"
+                                      " or power (cos^p)."),
+    header: Optional[Path] = typer.Option(None, "--header", help="Also write a C header for the head's MCU."),
+    sensor: Optional[str] = typer.Option(None, "--sensor", "--sensor-id",
+                                         help="Fit this sensor_id of a multi-sensor file."),
+    json_out: Optional[Path] = typer.Option(None, "--json", help="Also write the fit's figures as JSON here."),
+) -> None:
+    """Fit a coarse-sun-sensor head's calibration (seed 000): every detector's scale, offset, normal, response and
+    temperature coefficients, and the Sun's direction scored held out."""
+    import json
+
+    from .css_datafile import css_calibration_file, css_metrics, fit_css, read_css_frames
+
+    if response not in ("kelly", "power"):
+        raise CalibrationError(f"--response must be kelly or power, got {response!r}")
+    frames = read_css_frames(data_csv, sensor_id=sensor)
+    data = frames.data
+    try:
+        with err.status("fitting every detector and leaving directions out…"):
+            outcome = fit_css(data, response=response)
+    except CalibrationError as exc:
+        raise DataFileError(data_csv, str(exc), column=getattr(exc, "column", None)) from None
+    document = css_calibration_file(outcome, source=str(data_csv), software=f"sunbench {_version()}")
+    metrics = css_metrics(outcome)
+    out.print(css_diodes_table(document))
+    out.print(css_accuracy_table(metrics))
+    if outcome.rejected:
+        out.print(f"[bold]{len(outcome.rejected)} rejected reading(s)[/] (left out of the fit and the scores):",
+                  highlight=False)
+        for r in outcome.rejected:
+            where = "" if not np.isfinite(r.zenith_deg) else (f" (zenith {r.zenith_deg:.2f}°, azimuth "
+                                                               f"{r.azimuth_deg:.2f}°)")
+            out.print(f"  {frames.where(r.row_id)}{where}: {escape((r.channel or 'every channel') + ' ' + r.reason)}",
+                      highlight=False, soft_wrap=True)
+    for w in outcome.warnings:
+        out.print(f"[bold yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
+    out.print(f"{len(data)} readings ({int(data.dark.sum())} dark, {int(data.check.sum())} check) of "
+              f"{len(data.channels)} detector(s) from {escape(str(data_csv))}"
+              + (f" (sensor {escape(data.sensor_id)})" if data.sensor_id else "")
+              + f"; {len(outcome.valid_channels)} calibrated, {response} law", highlight=False)
+    text = css_header_from_document(document) if header else None  # a header that cannot be written: no file at all
+    if output:
+        write_calibration(output, document)
+        out.print(f"calibration written to {escape(str(output))}")
+    if header:
+        _write_text(header, text)
+        out.print(f"C header written to {escape(str(header))}")
+    if json_out:
+        figures = {"source": str(data_csv), "sensor_id": data.sensor_id, "metrics": metrics,
+                   "diodes": document["diodes"], "warnings": document["warnings"], "rejected": document["rejected"]}
+        _write_text(json_out, json.dumps(figures, indent=2) + "\n")
+        out.print(f"figures written to {escape(str(json_out))}")
+
+
 def _write_text(path: Path, text: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
@@ -423,14 +543,20 @@ def _write_text(path: Path, text: str) -> None:
 def apply_calibration(
     calibration_json: Path = typer.Argument(..., help="Calibration JSON written by `sunbench fit`."),
     spots_csv: Path = typer.Argument(..., help="CSV with x_px, y_px columns (a CMOS or camera calibration; a QD "
-                                               "calibration: i1_a … i4_a, temperature_c)."),
+                                               "calibration: i1_a … i4_a, temperature_c; a CSS calibration: its "
+                                               "detector columns px_uv_a … mz_ir_v, temperature_c)."),
     output: Path = typer.Option(..., "--output", "-o", help="Output CSV: the input columns + zenith_deg, azimuth_deg "
-                                                            "(QD: alpha_deg, beta_deg first, error_deg last)."),
+                                                            "(QD: alpha_deg, beta_deg first, error_deg last; CSS: "
+                                                            "sigma_deg, faces_lit, error_deg after them)."),
 ) -> None:
-    """Turn spot centres (or a QD sensor's currents) into sun directions with a fitted calibration."""
+    """Turn spot centres (or a QD sensor's currents, a CSS head's readings) into sun directions with a fitted
+    calibration."""
     document = load_calibration_json(calibration_json)
     if is_qd_document(document):
         _apply_qd(calibration_json, spots_csv, output)
+        return
+    if is_css_document(document):
+        _apply_css(calibration_json, spots_csv, output)
         return
     if is_camera_document(document):
         _apply_camera(calibration_json, spots_csv, output)
@@ -482,6 +608,36 @@ def _apply_qd(calibration_json: Path, readings_csv: Path, output: Path) -> None:
                   f"{escape(', '.join(readings.sensor_ids))}", highlight=False)
 
 
+def _apply_css(calibration_json: Path, readings_csv: Path, output: Path) -> None:
+    """`apply` with a CSS calibration: each row's Sun direction from its detectors' readings and temperature, its 1σ
+    and the faces lit, and the angle to the file's true direction where it has one (the document alone)."""
+    from .css_datafile import apply_css, read_css_calibration, read_css_readings, write_css_applied_csv
+
+    document = read_css_calibration(calibration_json)
+    readings = read_css_readings(readings_csv)
+    applied = apply_css(document, readings)
+    write_css_applied_csv(output, readings, applied)
+    lit = ~readings.dark
+    none = int((lit & ~applied.determined).sum())
+    out.print(f"{int(applied.determined.sum())} directions written to {escape(str(output))} (CSS head, "
+              f"{document['response']} law)"
+              + (f"; {int(readings.dark.sum())} dark row(s) left without one" if readings.dark.any() else "")
+              + (f"; no direction for {none} lit row(s) (fewer than two non-coplanar faces lit)" if none else ""),
+              highlight=False, soft_wrap=True)
+    if applied.determined.any():
+        sigma = applied.sigma_deg[applied.determined]
+        out.print(f"stated 1σ: median {np.median(sigma):.4f}°, max {np.max(sigma):.4f}°", highlight=False)
+    error = applied.error_deg
+    if error is not None and np.isfinite(error).any():
+        e = error[np.isfinite(error)]
+        out.print(f"angular error against the file's directions: RMS {np.sqrt(np.mean(e**2)):.4f}°, p95 "
+                  f"{np.percentile(e, 95):.4f}°, max {e.max():.4f}° over {e.size} row(s)", highlight=False)
+    sensor = document.get("sensor_id")
+    if sensor and readings.sensor_ids and readings.sensor_ids != [sensor]:
+        out.print(f"[yellow]note:[/] the calibration is of sensor {escape(sensor)}, the readings of "
+                  f"{escape(', '.join(readings.sensor_ids))}", highlight=False)
+
+
 @commands.command("header")
 @user_errors
 def export_header(
@@ -493,6 +649,8 @@ def export_header(
     document = load_calibration_json(calibration_json)
     if is_qd_document(document):
         text = qd_header_from_document(read_qd_calibration(calibration_json))
+    elif is_css_document(document):
+        text = css_header_from_document(read_css_calibration(calibration_json))
     elif is_camera_document(document):
         text = camera_header_from_document(read_camera_calibration(calibration_json)[1])
     else:
@@ -625,7 +783,8 @@ def serve_simulators(
         if pty:
             from drivers.sim.pty_bridge import PtyBridge
             bridges = {role: PtyBridge(device).start() for role, device in bench.devices.items()}
-        serial = {"qd": sim.qd.serial, "camera": sim.camera.serial}.get(sim.family, sim.sensor.serial)
+        serial = {"qd": sim.qd.serial, "camera": sim.camera.serial, "css": sim.css.serial}.get(sim.family,
+                                                                                               sim.sensor.serial)
         out.print(f"simulated bench: {sim.table} table, {sim.source} source, {sim.axis_order}, {sim.family} sensor "
                   f"{serial}, time scale {bench.time_scale:g}", highlight=False)
         for role, url in server.urls.items():

@@ -255,6 +255,9 @@ def show_run(run_id: int = typer.Argument(..., min=1, max=MAX_ID), catalogue: Op
         if run.get("family") == "camera":
             _show_camera_calibrations(cat, run_id)
             return
+        if run.get("family") == "css":
+            _show_css_calibrations(cat, run_id)
+            return
         reports, chosen, document = [], None, {}
         metrics = lambda m, key: AccuracyMetrics(**m[key]) if m.get(key) else None  # noqa: E731
         for c in cat.calibrations(run_id):
@@ -313,6 +316,39 @@ def _show_camera_calibrations(cat, run_id: int) -> None:
                           f"{num(scheme.get('max_deg'), 4)}° over {scheme.get('n_points')} spots", highlight=False)
         for warning in document.get("warnings") or []:
             out.print(f"[bold yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
+
+
+def _show_css_calibrations(cat, run_id: int) -> None:
+    """A CSS run's calibrations (one per response law): the Sun's direction held out, at the check directions and at
+    the fitted ones, the channels left out, and the chosen one's rejected readings and warnings."""
+    def figures(m) -> str:
+        if not m or not m.get("n_points"):
+            return "—"
+        return (f"RMS {fmt(m['rms_deg'] if m['rms_deg'] is not None else float('nan'), 4)}°, max "
+                f"{fmt(m['max_deg'] if m['max_deg'] is not None else float('nan'), 4)}° over {m['n_points']} readings"
+                + (f" ({m['n_degenerate']} degenerate)" if m.get("n_degenerate") else ""))
+
+    chosen = {}
+    for c in cat.calibrations(run_id):
+        m = c["metrics"]
+        out.print(f"calibration {c['method']} law{' (chosen)' if c['chosen'] else ''}: {len(m.get('channels') or [])} "
+                  f"detector(s); the Sun's direction held out {figures(m.get('held_out'))}; check directions "
+                  f"{figures(m.get('check'))}; fitted directions {figures(m.get('at_nodes'))}", highlight=False,
+                  soft_wrap=True)
+        for channel, fault in (m.get("faulty") or {}).items():
+            out.print(f"  {channel} left out: {escape(str(fault))}", highlight=False)
+        if c["chosen"]:
+            chosen = c["document"]
+    rejected = chosen.get("rejected") or []
+    if rejected:
+        out.print(f"[bold]{len(rejected)} rejected reading(s)[/]:", highlight=False)
+        for r in rejected[:20]:
+            out.print(f"  reading {r.get('row')}: {escape(str(r.get('channel') or 'every channel'))} "
+                      f"{escape(str(r.get('reason')))}", highlight=False, soft_wrap=True)
+        if len(rejected) > 20:
+            out.print(f"  … and {len(rejected) - 20} more (the calibration document lists them)", highlight=False)
+    for warning in chosen.get("warnings") or []:
+        out.print(f"[bold yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
 
 
 def print_quality(document: dict) -> None:

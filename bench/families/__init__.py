@@ -148,4 +148,4 @@ def table_mount(axis_order: str, geometry):
 def _load() -> None:
     # the families register themselves on import; imported here, late, because they import the bench modules
     # that import this registry
-    from . import camera, cmos, qd  # noqa: F401
+    from . import camera, cmos, css, qd  # noqa: F401

@@ -257,6 +257,15 @@ def response(diode: DiodeTruth, cos_incidence) -> np.ndarray:
     return np.where(lit, np.maximum(out, 0.0), 0.0)
 
 
+def band_exitance(temperature_k: float, low_m: float = 5.5e-6, high_m: float = 40e-6) -> float:
+    """Black-body exitance between two wavelengths (the TPS 230's filter passes beyond 5.5 µm) [W/m²]: Planck's law
+    integrated numerically on a logarithmic grid."""
+    h, c, k = 6.62607015e-34, 2.99792458e8, 1.380649e-23
+    lam = np.geomspace(low_m, high_m, 2000)
+    spectral = 2 * math.pi * h * c * c / lam ** 5 / np.expm1(h * c / (lam * k * temperature_k))
+    return float(np.sum(0.5 * (spectral[1:] + spectral[:-1]) * np.diff(lam)))
+
+
 # -- the Earth --------------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class EarthScene:
@@ -346,8 +355,10 @@ class CssOptics:
         """Noise-free signal the Earth adds to each detector (18,): albedo on the photodiodes, IR on the thermopiles.
 
         A Lambertian disc of radiance L = a·f·E/π gives a face at normal incidence a·f·E·sin²ρ; the integral here
-        runs through each detector's own response. The thermopile's share is σ(T_E⁴ − T_space⁴) over the same
-        integral, relative to the Sun's σ·5780⁴·Ω_sun that its `scale` stands for (a band-blind simplification)."""
+        runs through each detector's own response. The thermopile's is the Earth's black-body radiance in its band
+        (beyond the 5.5 µm cut-on) over the same integral, relative to the Sun's in-band radiance × its solid angle,
+        which its `scale` stands for: the Earth outshines the Sun on a thermopile some forty times (its offset —
+        the detector's own emission against the scene — is the bench's, a room at 25 °C; in orbit it differs)."""
         dirs, weights = _disc_quadrature(earth.direction, earth.angular_radius_deg)
         responses = self.responses(dirs) * weights[:, None]
         seen = responses.sum(axis=0) / math.pi  # a uniform unit-radiance disc
@@ -359,7 +370,7 @@ class CssOptics:
             lit = np.maximum(earth.ground_cosines(dirs), 0.0)
             albedo = earth.albedo * (responses * lit[:, None]).sum(axis=0) / math.pi
         sun_sr = math.pi * math.radians(0.2666) ** 2
-        ir = seen * math.pi * (earth.temperature_k ** 4 - 3.0 ** 4) / (5780.0 ** 4 * sun_sr)
+        ir = seen * math.pi * band_exitance(earth.temperature_k) / (band_exitance(5780.0) * sun_sr)
         return gain * np.where(is_ir, ir, albedo)
 
     def signals(self, sun_vector, irradiance: float = 1.0, temperature_c: float = 25.0,
