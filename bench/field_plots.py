@@ -45,7 +45,7 @@ def write_comparison_plots(document: dict, path: Path) -> Path:
     if heading["fitted"]:
         title += f" (heading fitted: {heading['deg']:.3f}°, the azimuth error is relative)"
     fig.update_layout(title=title, height=1400, template="plotly_white")
-    return _write(fig, path)
+    return write_figure(fig, path)
 
 
 def write_location_plot(document: dict, path: Path) -> Path:
@@ -67,7 +67,7 @@ def write_location_plot(document: dict, path: Path) -> Path:
                             f"(±{loc['sd_latitude_km']:.2f} km N, ±{loc['sd_longitude_km']:.2f} km E, 1σ){error}",
                       xaxis_title="longitude [°]", yaxis_title="latitude [°]", template="plotly_white",
                       yaxis={"scaleanchor": "x", "scaleratio": 1 / max(0.05, _cos_deg(loc["latitude_deg"]))})
-    return _write(fig, path)
+    return write_figure(fig, path)
 
 
 def _cos_deg(deg: float) -> float:
@@ -75,7 +75,9 @@ def _cos_deg(deg: float) -> float:
     return math.cos(math.radians(deg))
 
 
-def _write(fig, path: Path) -> Path:
+def write_figure(fig, path: Path) -> Path:
+    """`fig` as a standalone HTML file at `path`, plotly.js written once beside it (the same file serves every
+    figure in the folder)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.write_html(path, include_plotlyjs="directory", full_html=True)

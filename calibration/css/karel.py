@@ -50,6 +50,7 @@ from .quantiser import (
     BPW_ALBEDO,
     BPW_SUN,
     CODE_BITS,
+    DARK_CODE,
     EPD_ALBEDO,
     EPD_SUN,
     NOT_PROCESSED,
@@ -94,12 +95,17 @@ def _face_codes(codes) -> np.ndarray:
     return c
 
 
-def _selected(c: np.ndarray) -> np.ndarray:
-    # the listing's `pom~=('xxxxx')`: the face's column was written; on board the unused 11111 means "not"
-    return (c != NOT_PROCESSED) & (c != NOT_PROCESSED_ONBOARD)
+def _selected(c: np.ndarray, listing: bool = False) -> np.ndarray:
+    # the listing's `pom~=('xxxxx')`: the face's column was written; on board the unused 11111 means "not".
+    # LISTING: a face picked among the three strongest but dark (code 19, "90°: not lit") is processed too, and the
+    # azimuth rules test face 1 before face 3, so the Sun on face 3 alone beside a dark face 1 reads as on face 1
+    # (az 47.5° for 132.5°). Ch. 5.3.3 says what a dark face is for: "faces that are not lit read as 90°; this tells
+    # how many faces, and which, are lit" — the intended rules see only lit faces (`listing=True`: the literal one).
+    selected = (c != NOT_PROCESSED) & (c != NOT_PROCESSED_ONBOARD)
+    return selected if listing else selected & (c != DARK_CODE)
 
 
-def elevation_from_codes(codes) -> np.ndarray:
+def elevation_from_codes(codes, *, listing: bool = False) -> np.ndarray:
     """Elevation [°] from six face codes by the rule of seed 000 listing D.5 (lines 792–857; Table C.3).
 
     EL = +elevace(code of face 5) if face 5 was processed, else −elevace(code of face 6) if face 6 was, else 0.
@@ -109,9 +115,11 @@ def elevation_from_codes(codes) -> np.ndarray:
     codes : array_like, shape (..., 6)
         Codes in thesis face order 1 … 6 (calibration.css.head.FACES); ints with :data:`~.quantiser.NOT_PROCESSED`
         (−1) or 31 for a face not processed, or bit strings with ``'xxxxx'``.
+    listing : bool
+        Count a processed face at code 19 (dark) as the listing does (:func:`_selected`); by default it is not lit.
     """
     c = _face_codes(codes)
-    sel = _selected(c)
+    sel = _selected(c, listing)
     # LISTING: lines 839 and 853 call elevace() on a column, `elevace(BPWalbedo(1:5,6))`, without the transpose
     # the other calls have; codes here are ints, so there is nothing to transpose.
     up = code_angle_deg(np.where(sel[..., 4], c[..., 4], 0))
@@ -119,7 +127,7 @@ def elevation_from_codes(codes) -> np.ndarray:
     return np.where(sel[..., 4], up, np.where(sel[..., 5], down, 0.0))
 
 
-def azimuth_from_codes(codes) -> np.ndarray:
+def azimuth_from_codes(codes, *, listing: bool = False) -> np.ndarray:
     """Azimuth [°] in [0, 360] from six face codes by the rule of seed 000 listing D.5 (lines 859–1042).
 
     With ψ_f = azimut(code of face f) = 90° − its bin centre::
@@ -134,9 +142,11 @@ def azimuth_from_codes(codes) -> np.ndarray:
     ----------
     codes : array_like, shape (..., 6)
         As for :func:`elevation_from_codes`.
+    listing : bool
+        As for :func:`elevation_from_codes`.
     """
     c = _face_codes(codes)
-    sel = _selected(c)
+    sel = _selected(c, listing)
     psi2 = code_angle_deg(np.where(sel[..., 1], c[..., 1], 0))
     psi4 = code_angle_deg(np.where(sel[..., 3], c[..., 3], 0))
     # LISTING: lines 914, 917 and the EPDalbedo/BPWalbedo blocks (934–1005) read columns without the transpose
@@ -337,7 +347,7 @@ def _descending(values: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 
 def karel_attitude(tps_c, epd_a, bpw_a, *, tvis_earth_c: float = TVIS_EARTH_C,
-                   tables: Mapping[str, Sequence[float]] | None = None) -> KarelResult:
+                   tables: Mapping[str, Sequence[float]] | None = None, listing: bool = False) -> KarelResult:
     """Sun and Earth azimuth/elevation from one cube reading: seed 000's algorithm (listing D.5, ch. 6).
 
     Parameters
@@ -353,6 +363,9 @@ def karel_attitude(tps_c, epd_a, bpw_a, *, tvis_earth_c: float = TVIS_EARTH_C,
     tables : mapping, optional
         Calibrated thresholds by table name (``epd_albedo``, ``epd_sun``, ``bpw_albedo``, ``bpw_sun``, ``tps``),
         e.g. from :func:`~.quantiser.thresholds_from_response`, 19 each (5° bins); listing D.6's otherwise.
+    listing : bool
+        Let a dark face (code 19) picked among the three strongest steer the azimuth rules as the listing does
+        (:func:`_selected`); by default only lit faces do, as ch. 5.3.3 intends.
 
     Returns
     -------
@@ -417,8 +430,8 @@ def karel_attitude(tps_c, epd_a, bpw_a, *, tvis_earth_c: float = TVIS_EARTH_C,
     # LISTING: D.5 names the Sun elevations `ELSunEPD`/`ELSunBPW` (capital S, lines 796–815); the ch. 6 excerpt
     # and printout have `ELsunEPD`/`ELsunBPW`, which are used here.
     stacked = np.stack([epd_sun, bpw_sun, epd_alb, bpw_alb, tps_alb])
-    el = elevation_from_codes(stacked)
-    az = azimuth_from_codes(stacked)
+    el = elevation_from_codes(stacked, listing=listing)
+    az = azimuth_from_codes(stacked, listing=listing)
 
     # --- Decision about correct calculation of the Sun position (D.5 lines 1048–1102) --------------------------
     # LISTING: only two cases have a branch: tpspos4 alone, and tpspos4 with tpspos5 (both with tpspos6 == 0).

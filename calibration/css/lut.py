@@ -31,7 +31,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from ..export import c_array, comment_safe
-from .karel import azimuth_from_codes, elevation_from_codes
+from .karel import _selected, azimuth_from_codes, elevation_from_codes
 from .quantiser import CODE_BITS, DARK_CODE, NOT_PROCESSED, NOT_PROCESSED_ONBOARD, TABLES, QuantiserTable
 
 #: Entries of the elevation LUT (codes 0 … 19; Table C.3)
@@ -63,13 +63,14 @@ def build_elevation_lut() -> np.ndarray:
 def build_azimuth_lut() -> np.ndarray:
     """The azimuth LUT (seed 000 ch. 5.3.5): in-quadrant azimuth [°] by :func:`azimuth_address`, NaN unreachable.
 
-    Entry (c13, c24) is what the D.5 rule gives with face 1 at code c13 and face 2 at code c24.
+    Entry (c13, c24) is what the D.5 rule gives with face 1 at code c13 and face 2 at code c24, dark codes included
+    (the listing's rule: whether a dark face steers is the lookup's choice, :func:`lookup_azimuth`).
     """
     lut = np.full(AZIMUTH_ENTRIES, np.nan)
     c13, c24 = (g.ravel() for g in np.meshgrid(np.arange(DARK_CODE + 1), np.arange(DARK_CODE + 1), indexing="ij"))
     codes = np.full((c13.size, 6), NOT_PROCESSED)
     codes[:, 0], codes[:, 1] = c13, c24
-    lut[azimuth_address(c13, c24)] = azimuth_from_codes(codes)
+    lut[azimuth_address(c13, c24)] = azimuth_from_codes(codes, listing=True)
     return lut
 
 
@@ -80,25 +81,27 @@ def _codes(codes) -> np.ndarray:
     return c.astype(int)
 
 
-def _processed(c: np.ndarray) -> np.ndarray:
-    return (c != NOT_PROCESSED) & (c != NOT_PROCESSED_ONBOARD)
+def _processed(c: np.ndarray, listing: bool = False) -> np.ndarray:
+    # a dark face (code 19) is not lit and steers nothing, unless `listing` (calibration.css.karel._selected)
+    return _selected(c, listing)
 
 
-def lookup_elevation(codes, lut: np.ndarray | None = None) -> np.ndarray:
+def lookup_elevation(codes, lut: np.ndarray | None = None, *, listing: bool = False) -> np.ndarray:
     """Elevation [°] of six face codes through the elevation LUT (seed 000 Table C.3).
 
     +lut[code of face 5] if face 5 was processed, else −lut[code of face 6] if face 6 was, else 0.
-    `codes`: ints, shape (..., 6), thesis face order; −1 or 31 where a face was not processed.
+    `codes`: ints, shape (..., 6), thesis face order; −1 or 31 where a face was not processed; a face at code 19 (dark)
+    counts as not lit unless `listing` (:func:`calibration.css.karel.elevation_from_codes`).
     """
     c = _codes(codes)
     lut = build_elevation_lut() if lut is None else np.asarray(lut, float)
-    sel = _processed(c)
+    sel = _processed(c, listing)
     c5 = np.where(sel[..., 4], c[..., 4], 0)
     c6 = np.where(sel[..., 5], c[..., 5], 0)
     return np.where(sel[..., 4], lut[c5], np.where(sel[..., 5], -lut[c6], 0.0))
 
 
-def lookup_azimuth(codes, lut: np.ndarray | None = None) -> np.ndarray:
+def lookup_azimuth(codes, lut: np.ndarray | None = None, *, listing: bool = False) -> np.ndarray:
     """Azimuth [°] of six face codes through the azimuth LUT and the cube's symmetry (seed 000 ch. 5.3.5).
 
     The 1/3 face is face 1 if processed, else face 3; the 2/4 face is face 2 if processed, else face 4 (the
@@ -108,7 +111,7 @@ def lookup_azimuth(codes, lut: np.ndarray | None = None) -> np.ndarray:
     """
     c = _codes(codes)
     lut = build_azimuth_lut() if lut is None else np.asarray(lut, float)
-    sel = _processed(c)
+    sel = _processed(c, listing)
     has13 = sel[..., 0] | sel[..., 2]
     has24 = sel[..., 1] | sel[..., 3]
     c13 = np.where(sel[..., 0], c[..., 0], np.where(sel[..., 2], c[..., 2], 0))
@@ -120,10 +123,11 @@ def lookup_azimuth(codes, lut: np.ndarray | None = None) -> np.ndarray:
     return np.where(has13 & has24, two, one)
 
 
-def lookup(codes, elevation_lut: np.ndarray | None = None,
-           azimuth_lut: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def lookup(codes, elevation_lut: np.ndarray | None = None, azimuth_lut: np.ndarray | None = None, *,
+           listing: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """(azimuth, elevation) [°] of six face codes through the two LUTs (seed 000 ch. 5.3.5, Table C.3)."""
-    return lookup_azimuth(codes, azimuth_lut), lookup_elevation(codes, elevation_lut)
+    return (lookup_azimuth(codes, azimuth_lut, listing=listing),
+            lookup_elevation(codes, elevation_lut, listing=listing))
 
 
 def _decideg(values) -> list[int]:
@@ -148,7 +152,8 @@ static inline uint8_t sbcss_quantise(double x, const double t[SBCSS_N_THRESHOLDS
     return k;
 }
 
-static inline int sbcss_processed(uint8_t c) { return c != SBCSS_NOT_PROCESSED; }
+/* a face steers the rules when it was processed and is lit: code 19 reads 90 deg, not lit (ch. 5.3.3) */
+static inline int sbcss_processed(uint8_t c) { return c != SBCSS_NOT_PROCESSED && c != SBCSS_N_THRESHOLDS; }
 
 /* Azimuth and elevation in tenths of a degree from six face codes (faces 1..6; SBCSS_NOT_PROCESSED where a face
    was not processed), as listing D.5 decides them. Returns 1, or 0 when a processed code is out of range. */

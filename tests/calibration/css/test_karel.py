@@ -217,12 +217,12 @@ def test_matrices_and_codes_round_trip():
 NORMALS_1_TO_6 = np.array([[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
 
 
-def _sun(az_deg, el_deg):
+def _sun(az_deg, el_deg, listing=False):
     az, el = np.radians(az_deg), np.radians(el_deg)
     s = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
     inc = np.degrees(np.arccos(np.clip(NORMALS_1_TO_6 @ s, -1, 1)))
     current = np.where(inc < 90, np.interp(np.minimum(inc, 90), C1_ANGLE, C1_EPD_SUN), 0.0)
-    return karel_attitude(np.full(6, -270.0), current, current * (1.17e-3 / 6.18e-6))
+    return karel_attitude(np.full(6, -270.0), current, current * (1.17e-3 / 6.18e-6), listing=listing)
 
 
 def test_azimuth_from_one_side_face_is_exact_only_at_el_0():
@@ -244,10 +244,12 @@ def test_elevation_from_face_5_or_6_is_exact_to_the_quantisation(az):
         assert abs(r.ELsunEPD - el) <= 2.5 + 1e-9, (az, el, r.ELsunEPD)
 
 
-def test_a_dark_face_picked_as_the_third_sun_face_counts_as_processed():
+def test_a_dark_face_picked_as_the_third_sun_face_steers_the_listing_not_the_intended_rules():
     # Sun at az 132°, el 0: face 2 lit at 42°, face 3 at 48°, the third strongest is a dark 0 A, the lowest such
-    # face (1). Face 1 processed takes the rule's first branch: azimut(01001) = 47.5 instead of 180 − 47.5 = 132.5
+    # face (1). In the listing face 1 processed takes the rule's first branch: azimut(01001) = 47.5 instead of
+    # 180 − 47.5 = 132.5; read as ch. 5.3.3 intends (a dark face reads 90°: not lit) the rules take face 3's branch
     r = _sun(132.0, 0.0)
     assert r.sun_faces_epd == (2, 3, 1)
-    assert r.AZsunEPD == 47.5
-    assert _sun(132.0, 1.0).AZsunEPD == 132.5  # with face 5 lit a little, the three faces are 2, 3, 5
+    assert r.AZsunEPD == 132.5
+    assert _sun(132.0, 0.0, listing=True).AZsunEPD == 47.5
+    assert _sun(132.0, 1.0, listing=True).AZsunEPD == 132.5  # with face 5 lit a little: faces 2, 3, 5

@@ -84,6 +84,10 @@ def test_lookup_through_the_luts_gives_the_rules_for_every_reachable_code_pair()
     az, el = lut.lookup(codes)
     np.testing.assert_array_equal(az, azimuth_from_codes(codes))
     np.testing.assert_array_equal(el, elevation_from_codes(codes))
+    listing_az, listing_el = lut.lookup(codes, listing=True)  # dark faces steering, as the listing has it
+    np.testing.assert_array_equal(listing_az, azimuth_from_codes(codes, listing=True))
+    np.testing.assert_array_equal(listing_el, elevation_from_codes(codes, listing=True))
+    assert np.any(listing_az != az)
     assert np.all(np.isfinite(az)) and np.all((az >= 0) & (az <= 360))
     # 31 (11111) is the on-board "not processed" and reads like −1
     onboard = np.where(codes == X, 31, codes)
