@@ -22,6 +22,7 @@ from calibration.procedure import (
     grid_azimuths_deg,
 )
 from calibration.qd.document import QD_METHODS  # the QD family's fits
+from drivers.css_sensor import DEFAULT_SETPOINT_RANGE_C
 
 from .yamlfile import field_problems, read_yaml
 
@@ -249,6 +250,11 @@ class CameraGridProcedure(_Strict):
         return 1 + self.rings * (self.azimuths + 4)
 
 
+#: The setpoints the CSS head's driver accepts (drivers/css_sensor.py DEFAULT_SETPOINT_RANGE_C): a campaign asking
+#: for others is refused when it is read, not when the plate is set in the middle of a run
+CSS_PLATE_RANGE_C = DEFAULT_SETPOINT_RANGE_C
+
+
 class CssSweepProcedure(_Strict):
     """A coarse-sun-sensor head's bench calibration (seed 000 digest §8.3 items 7–8, 10): a plan that sweeps each
     face through its field. For each face, rings of incidence around its normal from 0 to `field_deg` every
@@ -274,8 +280,9 @@ class CssSweepProcedure(_Strict):
     @field_validator("temperatures_c")
     @classmethod
     def _temperatures(cls, v):
-        if any(not -40 <= t <= 85 for t in v):
-            raise ValueError("the head's thermal plate is set within −40…85 °C")
+        low, high = CSS_PLATE_RANGE_C
+        if any(not low <= t <= high for t in v):
+            raise ValueError(f"the head's thermal plate is set within {low:g}…{high:g} °C (its driver's range)")
         if len(set(v)) != len(v):
             raise ValueError("a temperature is listed twice")
         return v

@@ -159,7 +159,8 @@ def test_counts_match_the_campaign_and_keys_are_stable():
 
 @pytest.mark.parametrize("fields, words", [
     ({"temperatures_c": [25, 25]}, "listed twice"),
-    ({"temperatures_c": [25, 120]}, "−40…85 °C"),
+    ({"temperatures_c": [25, 120]}, "−20…70 °C"),
+    ({"temperatures_c": [25, -30]}, "−20…70 °C"),
     ({"field_deg": 95}, "less than or equal to 90"),
     ({"step_deg": 0.1}, "greater than or equal to 0.5"),
 ])
