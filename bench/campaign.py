@@ -282,7 +282,8 @@ class CssSweepProcedure(_Strict):
     def _temperatures(cls, v):
         low, high = CSS_PLATE_RANGE_C
         if any(not low <= t <= high for t in v):
-            raise ValueError(f"the head's thermal plate is set within {low:g}…{high:g} °C (its driver's range)")
+            span = f"{low:g}…{high:g}".replace("-", "−")
+            raise ValueError(f"the head's thermal plate is set within {span} °C (its driver's range)")
         if len(set(v)) != len(v):
             raise ValueError("a temperature is listed twice")
         return v
