@@ -14,6 +14,7 @@ from inprocess import AUTH, TOKEN, api_client
 from bench.campaign import (
     CameraGridProcedure,
     Campaign,
+    CssSweepProcedure,
     PhysicalProcedure,
     QdDarkSweep,
     QdGridProcedure,
@@ -274,19 +275,21 @@ def _limits(field) -> tuple[float | None, float | None]:
     return low, high
 
 
-def test_the_launcher_offers_the_seed003_physical_qd_and_camera_plans(client):
+def test_the_launcher_offers_the_seed003_physical_qd_camera_and_css_plans(client):
     # the page holds every plan's fieldset; launch.js keeps those of the bench's family (its <body data-plans>)
     form = _launch_form(client)
-    assert form.options == ["seed003", "physical", "qd-grid", "qd-physical", "qd-dark", "camera-grid"]
+    assert form.options == ["seed003", "physical", "qd-grid", "qd-physical", "qd-dark", "camera-grid", "css-sweep"]
     assert set(form.options) <= set(typing.get_args(Campaign.model_fields["plan"].annotation))
     # one fieldset per plan, named as the plan (its data-field names Campaign's field: qd_grid for qd-grid)
-    assert set(form.inputs) == {None, "seed003", "physical", "qd-grid", "qd-physical", "qd-dark", "camera-grid"}
+    assert set(form.inputs) == {None, "seed003", "physical", "qd-grid", "qd-physical", "qd-dark", "camera-grid",
+                                "css-sweep"}
     assert {"name", "operator", "sensors"} <= set(form.inputs[None]) and {"plan", "frames"} <= form.selects
 
 
 @pytest.mark.parametrize("plan, model", [("seed003", Seed003Procedure), ("physical", PhysicalProcedure),
                                          ("qd-grid", QdGridProcedure), ("qd-physical", QdPhysicalProcedure),
-                                         ("qd-dark", QdDarkSweep), ("camera-grid", CameraGridProcedure)])
+                                         ("qd-dark", QdDarkSweep), ("camera-grid", CameraGridProcedure),
+                                         ("css-sweep", CssSweepProcedure)])
 def test_every_field_of_the_launcher_has_the_models_default_and_limits(client, plan, model):
     inputs = _launch_form(client).inputs[plan]
     targets = {name.split(".", 1)[1] for name in inputs if name.startswith("parameter_targets.")}
@@ -306,7 +309,8 @@ def test_every_field_of_the_launcher_has_the_models_default_and_limits(client, p
                               "check_rms_target_deg", "temperature_c"},
               "qd-dark": {"temperatures_c", "repeats", "tolerance_c"},
               "camera-grid": {"horizontal_fov_deg", "width_px", "height_px", "rings", "azimuths", "margin_radii",
-                              "repeats"}}[plan]
+                              "repeats"},
+              "css-sweep": set(CssSweepProcedure.model_fields)}[plan]
     assert fields == wanted
     for name in fields:
         attrs, field = inputs[name], model.model_fields[name]

@@ -1,6 +1,6 @@
 // Campaign launcher: the plan (seed 003 or physical on a CMOS bench, qd-grid, qd-physical or qd-dark on a QD one,
-// camera-grid on a camera one: the plans of the bench's sensor family only) and its procedure's fields, a dry run
-// (preflight), then start.
+// camera-grid on a camera one, css-sweep on a CSS head's: the plans of the bench's sensor family only) and its
+// procedure's fields, a dry run (preflight), then start.
 import { $, api, duration, el, initTokenForm, report, say } from "./common.js";
 
 const form = $("#campaign-form");
