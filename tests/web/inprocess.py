@@ -1,5 +1,6 @@
 """The web app in-process (Starlette's TestClient) around a bench service, with the tests' token and host; and a
-bench service on the simulated QD bench (seed 002's quadrant photodiode) or camera bench (seed 001's camera)."""
+bench service on the simulated QD bench (seed 002's quadrant photodiode), camera bench (seed 001's camera) or CSS
+bench (seed 000's coarse-sun-sensor head)."""
 
 import contextlib
 from pathlib import Path
@@ -39,6 +40,10 @@ QD_BENCH = Path(__file__).resolve().parents[2] / "examples" / "bench-sim-qd.yaml
 CAMERA_BENCH = QD_BENCH.parent / "bench-sim-camera.yaml"
 
 
+#: The simulated CSS bench of seed 000 (README: sunbench serve --bench examples/bench-sim-css.yaml)
+CSS_BENCH = QD_BENCH.parent / "bench-sim-css.yaml"
+
+
 @contextlib.contextmanager
 def bench_file_service(bench: Path, catalogue: Path):
     """A started bench service on the simulated bench of the bench file `bench` at time scale 0, its catalogue at
@@ -59,3 +64,8 @@ def qd_bench_service(folder: Path):
 def camera_bench_service(folder: Path):
     """A started bench service on the simulated camera bench at time scale 0, its catalogue in `folder`."""
     return bench_file_service(CAMERA_BENCH, folder / "camera.sqlite")
+
+
+def css_bench_service(folder: Path):
+    """A started bench service on the simulated CSS bench at time scale 0, its catalogue in `folder`."""
+    return bench_file_service(CSS_BENCH, folder / "css.sqlite")

@@ -48,7 +48,7 @@ def test_every_id_in_a_path_or_a_query_is_bounded_in_the_schema(client):
                     bounds = parameter["schema"].get("anyOf", [parameter["schema"]])[0]
                     assert bounds["maximum"] == MAX_ID and bounds["minimum"] in (0, 1), (path, parameter)
                     seen.add(parameter["name"])
-    assert seen == {"run_id", "campaign_id", "after_id"}
+    assert seen == {"run_id", "campaign_id", "after_id", "reading_id"}
 
 
 @pytest.mark.parametrize("method, url, body", ID_ROUTES, ids=[f"{m} {u}" for m, u, _ in ID_ROUTES])
@@ -71,6 +71,9 @@ def test_id_queries_are_bounded_too(client):
         response = client.get(f"/api/runs/{run_id}/log", params={"after_id": after}, headers=AUTH)
         assert response.status_code == 422 and response.json()["detail"][0]["loc"] == ["query", "after_id"]
     assert client.get(f"/api/runs/{run_id}/log", params={"after_id": MAX_ID}, headers=AUTH).json()["count"] == 0
+    for reading in (2**63, 0):  # a CSS reading's codes (web/routes/css.py): refused before the run is looked at
+        response = client.get(f"/api/runs/{run_id}/css/quantiser", params={"reading_id": reading}, headers=AUTH)
+        assert response.status_code == 422 and response.json()["detail"][0]["loc"] == ["query", "reading_id"]
 
 
 # -- no JSON true for a number, anywhere in a request -------------------------------------------------------

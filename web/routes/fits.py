@@ -17,8 +17,8 @@ from ..schemas import LeftOutFramePublic, _Out
 router = APIRouter(prefix="/api/runs", tags=["runs"], dependencies=READ,
                    responses={404: {"description": "No such run, or no such calibration of it"}})
 
-#: Where the results of another family's run are (web/routes/qd.py, web/routes/camera.py)
-RESULTS_ROUTES = {"qd": "qd/metrics", "camera": "camera/fit"}
+#: Where the results of another family's run are (web/routes/qd.py, web/routes/camera.py, web/routes/css.py)
+RESULTS_ROUTES = {"qd": "qd/metrics", "camera": "camera/fit", "css": "css/metrics"}
 
 
 class FitPointPublic(_Out):
