@@ -151,6 +151,12 @@ def test_a_css_runs_results_view_shows_its_detectors_directions_and_codes(browse
             expect(page.locator("#css-quantiser-heading")).to_contain_text(f"reading {top['reading_id']} ")
             expect(page.locator("#css-quantiser-reading")).to_contain_text("elevation 90.00°")
             shots("results-other")
+
+            # the live run page joins the finished run: its points in the log with the brightest visible diodes
+            page.goto("/run")
+            expect(page.locator("#log")).to_contain_text("_vis")
+            expect(page.locator("#log")).to_contain_text("(sweep)")
+            shots("run")
         finally:
             shots("last")
             context.close()

@@ -186,9 +186,18 @@ function finishedLink(id) {
 // -- each point as it lands -----------------------------------------------------------------------------------
 const spotText = (x, y) => `(${fmt(x, 2)}, ${fmt(y, 2)}) px`;
 
+// a CSS head's point (bench/families/css.py summary): its signals by channel; the three brightest visible
+// photodiodes say which faces the source lights
+const signalsText = (signals) => {
+  if (!signals) return "no reading";
+  const lit = Object.entries(signals).filter(([name]) => name.endsWith("_vis")).sort((a, b) => b[1] - a[1]);
+  return lit.slice(0, 3).map(([name, v]) => `${name} ${amps(v)}`).join(", ");
+};
+
 function pointLine(p, edgeFlags) {
   const where = `table azimuth ${fmt(p.azimuth_deg, 1)}°, zenith stage ${fmt(p.zenith_stage_deg, 2)}°`;
   if ("currents_a" in p) return `${p.key} (${p.stage}): ${where} → ${currentsText(p.currents_a)}`;
+  if ("signals" in p) return `${p.key} (${p.stage}): ${where} → ${signalsText(p.signals)}`;
   const found = p.spots.length ? p.spots.map(([x, y], i) => spotText(x, y) + (edgeFlags[i] ? " clipped at the edge" : ""))
     .join(", ") : "no spot";
   return `${p.key} (${p.stage}): ${where} → ${found}`;
@@ -201,8 +210,8 @@ function showPoint(d) {
   $("#n-table").textContent = `azimuth ${fmt(d.azimuth_deg, 3)}°, zenith stage ${fmt(d.zenith_stage_deg, 3)}°`;
   $("#n-body").textContent = d.zenith_deg === undefined ? "–"
     : `zenith ${fmt(d.zenith_deg, 3)}°, azimuth ${fmt(d.azimuth_body_deg, 3)}°`;
-  if ("currents_a" in d) {
-    $("#n-currents").textContent = currentsText(d.currents_a);
+  if ("currents_a" in d || "signals" in d) {
+    $("#n-currents").textContent = "signals" in d ? signalsText(d.signals) : currentsText(d.currents_a);
     $("#n-temperature").textContent = d.temperature_c === null || d.temperature_c === undefined ? "–"
       : `${fmt(d.temperature_c, 2)} °C`;
     return;
@@ -295,7 +304,7 @@ async function catchUp() {
     points.data.forEach((p, i) => {
       if (seenKeys.has(p.key)) return;
       if (p.summary && "currents_a" in p.summary) addCurrents(i + 1, p.summary.currents_a, `${p.key} (${p.stage})`);
-      else addSpot(p.x_px, p.y_px, p.zenith_stage_deg, p.key, Boolean(p.excluded));
+      else if (!(p.summary && "signals" in p.summary)) addSpot(p.x_px, p.y_px, p.zenith_stage_deg, p.key, Boolean(p.excluded));
     });
     draw();
     // a photodiode's latest currents, until the next point's event says newer ones
@@ -311,7 +320,8 @@ async function catchUp() {
       ...earlier.map((p) => [new Date(p.completed_utc), "point", `${p.key} (${p.stage}): table azimuth `
         + `${fmt(p.azimuth_deg, 1)}°, zenith stage ${fmt(p.zenith_stage_deg, 2)}° → `
         + (p.summary && "currents_a" in p.summary ? currentsText(p.summary.currents_a)
-          : p.x_px === null ? "no spot" : spotText(p.x_px, p.y_px) + (p.excluded ? ` (${p.excluded})` : ""))])];
+          : p.summary && "signals" in p.summary ? signalsText(p.summary.signals)
+            : p.x_px === null ? "no spot" : spotText(p.x_px, p.y_px) + (p.excluded ? ` (${p.excluded})` : ""))])];
     entries.push(...recordedResults(values.values, points.data));
     entries.sort((a, b) => a[0] - b[0]);
     for (const [when, kind, message] of entries) {
