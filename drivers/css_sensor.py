@@ -14,13 +14,13 @@ front-end offset, the thermopile's view of the room) are *not* removed: that is 
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 from . import css_protocol as wire
-from .errors import DeviceTimeout, LimitError
+from .errors import LimitError
 from .framed_protocol import FramedModule, ModuleError
-from .interfaces import CoarseSunHead, CssHeadReading, SensorIdentity, TecStatus
+from .interfaces import CoarseSunHead, CssHeadReading, SensorIdentity
+from .tec_protocol import TemperatureClient
 from .transport import DEFAULT_RETRIES, Port
 
 #: The thermal plate's setpoints the driver allows by default [°C]: the TPS 230's operating range starts at −20 °C,
@@ -74,7 +74,7 @@ class CssIdentity(SensorIdentity):
         return tuple((-p * u, (full - p) * u) for p, u in zip(self.pedestal_counts, self.units_per_count))
 
 
-class CssHead(FramedModule, CoarseSunHead):
+class CssHead(FramedModule, TemperatureClient, CoarseSunHead):
     """The coarse-sun-sensor head (18 channels: a UV, a visible and an IR detector on each face of a cube).
 
     Parameters
@@ -98,6 +98,7 @@ class CssHead(FramedModule, CoarseSunHead):
     reports_serial = True  # IDENTIFY answers the head's own serial
     frame_format = wire.FORMAT
     module_error = CssHeadError
+    controller, regulated, settle_timeout_s = "plate", "head", 1800.0  # TemperatureClient's messages
 
     def __init__(self, port: Port, *, setpoint_range_c=DEFAULT_SETPOINT_RANGE_C, retries: int = DEFAULT_RETRIES,
                  name: str | None = None):
@@ -161,39 +162,3 @@ class CssHead(FramedModule, CoarseSunHead):
         return CssHeadReading(ident.channels, counts, signals, saturated, under, temperature / 100.0, int(n),
                               int(counter), plate_on=bool(flags & wire.FLAG_PLATE_ON),
                               plate_settled=bool(flags & wire.FLAG_SETTLED))
-
-    def _plate(self, payload: bytes, command: int, what: str) -> TecStatus:
-        mode, setpoint, temperature, settled = self._unpack(wire.TEC_STATUS, self._exchange(command, payload), what)
-        if mode not in (wire.PLATE_OFF, wire.PLATE_ON):
-            self._fail(f"{what} reply has plate mode {mode}",
-                       wire.TEC_STATUS.pack(mode, setpoint, temperature, settled))
-        return TecStatus(mode == wire.PLATE_ON, setpoint / 100.0 if mode == wire.PLATE_ON else None,
-                         temperature / 100.0, bool(settled))
-
-    def set_temperature_setpoint_c(self, setpoint_c: float | None) -> TecStatus:
-        """Regulate the head at `setpoint_c` [°C] (resolution 0.01 °C) with its thermal plate; None switches the
-        plate off. A setpoint outside `setpoint_range_c` raises :class:`~drivers.errors.LimitError`, unsent."""
-        if setpoint_c is None:
-            return self._plate(wire.TEC_REQUEST.pack(wire.PLATE_OFF, 0), wire.SET_TEMPERATURE, "SET_TEMPERATURE")
-        low, high = self.setpoint_range_c
-        if not low <= setpoint_c <= high:  # NaN fails too
-            raise LimitError(self.name, f"setpoint {setpoint_c} °C is outside [{low}, {high}] °C")
-        return self._plate(wire.TEC_REQUEST.pack(wire.PLATE_ON, wire.centi(setpoint_c)), wire.SET_TEMPERATURE,
-                           "SET_TEMPERATURE")
-
-    def temperature_status(self) -> TecStatus:
-        return self._plate(b"", wire.GET_TEMPERATURE, "GET_TEMPERATURE")
-
-    def wait_until_settled(self, *, timeout_s: float = 1800.0, poll_s: float = 1.0, pause=time.sleep) -> TecStatus:
-        """Poll the plate until the head has settled; :class:`DeviceTimeout` if it has not within `timeout_s`.
-
-        `pause(poll_s)` waits between polls (a caller that must be able to cancel passes one that raises)."""
-        deadline = time.monotonic() + timeout_s
-        while True:
-            status = self.temperature_status()
-            if status.settled:
-                return status
-            if time.monotonic() > deadline:
-                raise DeviceTimeout(self.name, f"head not settled after {timeout_s} s (at "
-                                               f"{status.temperature_c:.2f} °C, setpoint {status.setpoint_c} °C)")
-            pause(poll_s)

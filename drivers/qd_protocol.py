@@ -63,8 +63,6 @@ from __future__ import annotations
 
 import struct
 
-# re-exported: the names of the shared framing (drivers/framed_protocol.py) that the driver, the simulator and the
-# tests take from here
 from .framed_protocol import (  # noqa: F401 - re-exported
     BAD_CRC,
     BAD_LENGTH,
@@ -80,17 +78,24 @@ from .framed_protocol import (  # noqa: F401 - re-exported
     unpad,
 )
 
+# re-exported: the names of the shared framing (drivers/framed_protocol.py) that the driver, the simulator and the
+# tests take from here
+from .tec_protocol import (  # noqa: F401 - re-exported: the temperature commands both modules share
+    GET_TEMPERATURE,
+    SET_TEMPERATURE,
+    TEC_OFF,
+    TEC_ON,
+    TEC_REQUEST,
+    TEC_STATUS,
+)
+
 FORMAT = FrameFormat(sync=b"\xa5\x51", length=struct.Struct("<H"), max_payload=255)
 MAX_PAYLOAD = FORMAT.max_payload
 encode_frame = FORMAT.encode  # (code, sequence, payload=b"") -> one frame: sync, header, payload, CRC-32
 decode_frame = FORMAT.decode  # (buffer) -> (Frame or None while incomplete, bytes consumed); raises FrameError
 
-IDENTIFY, READ, SET_TEMPERATURE, GET_TEMPERATURE = 0x01, 0x02, 0x03, 0x04
-
-TEC_OFF, TEC_ON = 0, 1
+IDENTIFY, READ = 0x01, 0x02  # SET_TEMPERATURE, GET_TEMPERATURE: drivers/tec_protocol.py
 
 IDENTITY = struct.Struct("<16s16s8sBH4fffIH")
 READ_REQUEST = struct.Struct("<H")
 READ_REPLY = struct.Struct("<HB4IhI")
-TEC_REQUEST = struct.Struct("<Bh")
-TEC_STATUS = struct.Struct("<BhhB")

@@ -13,13 +13,13 @@ nothing has): ``I = (mean counts − pedestal) × amperes per count`` of each qu
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 from . import qd_protocol as wire
-from .errors import DeviceTimeout, LimitError
+from .errors import LimitError
 from .framed_protocol import FramedModule, ModuleError
-from .interfaces import QuadrantReading, QuadrantSensor, SensorIdentity, TecStatus
+from .interfaces import QuadrantReading, QuadrantSensor, SensorIdentity
+from .tec_protocol import TemperatureClient
 from .transport import DEFAULT_RETRIES, Port
 
 
@@ -66,7 +66,7 @@ class QdIdentity(SensorIdentity):
         return tuple((self.full_scale_counts - self.pedestal_counts) * a for a in self.amperes_per_count)
 
 
-class QdSunSensor(FramedModule, QuadrantSensor):
+class QdSunSensor(FramedModule, TemperatureClient, QuadrantSensor):
     """The quadrant-photodiode sun-sensor module.
 
     Parameters
@@ -139,37 +139,3 @@ class QdSunSensor(FramedModule, QuadrantSensor):
         saturated = tuple(bool(flags >> k & 1) or counts[k] >= full for k in range(4))
         under = tuple(bool(flags >> (k + 4) & 1) or counts[k] <= 0 for k in range(4))
         return QuadrantReading(counts, currents, saturated, under, temperature / 100.0, int(n), int(counter))
-
-    def _tec(self, payload: bytes, command: int, what: str) -> TecStatus:
-        mode, setpoint, temperature, settled = self._unpack(wire.TEC_STATUS, self._exchange(command, payload), what)
-        if mode not in (wire.TEC_OFF, wire.TEC_ON):
-            self._fail(f"{what} reply has TEC mode {mode}", wire.TEC_STATUS.pack(mode, setpoint, temperature, settled))
-        return TecStatus(mode == wire.TEC_ON, setpoint / 100.0 if mode == wire.TEC_ON else None,
-                         temperature / 100.0, bool(settled))
-
-    def set_temperature_setpoint_c(self, setpoint_c: float | None) -> TecStatus:
-        """Regulate the die at `setpoint_c` [°C] (resolution 0.01 °C); None switches the TEC off."""
-        if setpoint_c is None:
-            return self._tec(wire.TEC_REQUEST.pack(wire.TEC_OFF, 0), wire.SET_TEMPERATURE, "SET_TEMPERATURE")
-        low, high = self.setpoint_range_c
-        if not low <= setpoint_c <= high:
-            raise LimitError(self.name, f"setpoint {setpoint_c} °C is outside [{low}, {high}] °C")
-        return self._tec(wire.TEC_REQUEST.pack(wire.TEC_ON, wire.centi(setpoint_c)), wire.SET_TEMPERATURE,
-                         "SET_TEMPERATURE")
-
-    def temperature_status(self) -> TecStatus:
-        return self._tec(b"", wire.GET_TEMPERATURE, "GET_TEMPERATURE")
-
-    def wait_until_settled(self, *, timeout_s: float = 900.0, poll_s: float = 1.0, pause=time.sleep) -> TecStatus:
-        """Poll the TEC until the die has settled; :class:`DeviceTimeout` if it has not within `timeout_s`.
-
-        `pause(poll_s)` waits between polls (a caller that must be able to cancel passes one that raises)."""
-        deadline = time.monotonic() + timeout_s
-        while True:
-            status = self.temperature_status()
-            if status.settled:
-                return status
-            if time.monotonic() > deadline:
-                raise DeviceTimeout(self.name, f"TEC not settled after {timeout_s} s (die at "
-                                               f"{status.temperature_c:.2f} °C, setpoint {status.setpoint_c} °C)")
-            pause(poll_s)

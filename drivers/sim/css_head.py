@@ -45,6 +45,7 @@ from ..framed_protocol import FramedResponder
 from .css_optics import CHANNELS, TYPES, ChannelFaults, CssChannels, CssOptics, CssTruth, css_truth
 from .device import SimDevice
 from .qd_optics import TecModel
+from .temperature import TemperatureResponder
 from .world import SimWorld
 
 MODEL = "SB-CSS-HEAD"
@@ -164,7 +165,7 @@ def css_fleet_truth(config: CssHeadConfig, serial: str) -> CssTruth:
     return css_truth(serial, seed, config.response, tilt_sd_deg=config.tilt_sd_deg, scale_sd=config.scale_sd)
 
 
-class CssHeadSimulator(FramedResponder, SimDevice):
+class CssHeadSimulator(TemperatureResponder, FramedResponder, SimDevice):
     """The CSS head on the simulated bench (its frame loop: :class:`drivers.framed_protocol.FramedResponder`).
 
     Parameters
@@ -176,6 +177,7 @@ class CssHeadSimulator(FramedResponder, SimDevice):
 
     name = "css-head"
     frame_format = wire.FORMAT
+    controller = "plate"  # TemperatureResponder's messages
 
     def __init__(self, world: SimWorld, config: CssHeadConfig | None = None):
         super().__init__()
@@ -260,8 +262,7 @@ class CssHeadSimulator(FramedResponder, SimDevice):
         return super()._dispatch(frame)
 
     def _commands(self):
-        return {wire.IDENTIFY: self._identify, wire.READ: self._read,
-                wire.SET_TEMPERATURE: self._set_temperature, wire.GET_TEMPERATURE: self._get_temperature}
+        return {wire.IDENTIFY: self._identify, wire.READ: self._read, **self._temperature_commands()}
 
     def _busy(self) -> bool:
         now = self.world.clock.now()
@@ -306,28 +307,7 @@ class CssHeadSimulator(FramedResponder, SimDevice):
                                        wire.centi(thermometer), self.samples & 0xFFFFFFFF)
         return self._hold_until(start + duration_s, self._reply(frame.code, frame.sequence, payload))
 
-    def _status(self, frame) -> bytes:
-        measured = self.tec.measured_c() + self.config.thermometer_noise_c * self._noise.standard_normal()
-        payload = wire.TEC_STATUS.pack(int(self.tec.enabled), wire.centi(self.tec.setpoint_c), wire.centi(measured),
-                                       int(self.tec.settled()))
-        return self._reply(frame.code, frame.sequence, payload)
-
-    def _set_temperature(self, frame):
-        if len(frame.payload) != wire.TEC_REQUEST.size:
-            return self._error(frame.sequence, wire.BAD_LENGTH, "SET_TEMPERATURE takes mode u8, setpoint i16")
-        mode, centi = wire.TEC_REQUEST.unpack(frame.payload)
-        setpoint = centi / 100.0
-        low, high = self.config.tec_range_c
-        if mode not in (wire.PLATE_OFF, wire.PLATE_ON):
-            return self._error(frame.sequence, wire.OUT_OF_RANGE, f"plate mode {mode}")
-        if mode == wire.PLATE_ON and not low <= setpoint <= high:
-            return self._error(frame.sequence, wire.OUT_OF_RANGE, f"setpoint {setpoint} C outside [{low}, {high}] C")
-        self.tec.set(mode == wire.PLATE_ON, setpoint)
-        return self._status(frame)
-
-    def _get_temperature(self, frame):
-        if frame.payload:
-            return self._error(frame.sequence, wire.BAD_LENGTH, "GET_TEMPERATURE takes no payload")
-        if self.world.clock.instant:
-            self.world.clock.advance_to(self.tec.settle_time_s())
-        return self._status(frame)
+    @property
+    def temperature_settings(self):
+        """Where TemperatureResponder finds the setpoint range and the thermometer's noise."""
+        return self.config

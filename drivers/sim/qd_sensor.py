@@ -25,6 +25,7 @@ from .. import qd_protocol as wire
 from ..framed_protocol import FramedResponder
 from .device import SimDevice
 from .qd_optics import ChannelFaults, QdChannels, QdOptics, QdTruth, TecModel
+from .temperature import TemperatureResponder
 from .world import SimWorld
 
 MODEL = "SB-QD-SUN"
@@ -88,7 +89,7 @@ class QdSensorConfig(BaseModel):
         return QdTruth(**self.model_dump())
 
 
-class QdSensorSimulator(FramedResponder, SimDevice):
+class QdSensorSimulator(TemperatureResponder, FramedResponder, SimDevice):
     """The QD module on the simulated bench (its frame loop: :class:`drivers.framed_protocol.FramedResponder`).
 
     Parameters
@@ -155,8 +156,7 @@ class QdSensorSimulator(FramedResponder, SimDevice):
         return super()._dispatch(frame)
 
     def _commands(self):
-        return {wire.IDENTIFY: self._identify, wire.READ: self._read,
-                wire.SET_TEMPERATURE: self._set_temperature, wire.GET_TEMPERATURE: self._get_temperature}
+        return {wire.IDENTIFY: self._identify, wire.READ: self._read, **self._temperature_commands()}
 
     def _busy(self) -> bool:
         now = self.world.clock.now()
@@ -200,29 +200,7 @@ class QdSensorSimulator(FramedResponder, SimDevice):
                                        self.samples & 0xFFFFFFFF)
         return self._hold_until(start + duration_s, self._reply(frame.code, frame.sequence, payload))
 
-    def _status(self, frame) -> bytes:
-        t = self.truth
-        measured = self.tec.measured_c() + t.thermometer_noise_c * self._noise.standard_normal()
-        payload = wire.TEC_STATUS.pack(int(self.tec.enabled), wire.centi(self.tec.setpoint_c), wire.centi(measured),
-                                       int(self.tec.settled()))
-        return self._reply(frame.code, frame.sequence, payload)
-
-    def _set_temperature(self, frame):
-        if len(frame.payload) != wire.TEC_REQUEST.size:
-            return self._error(frame.sequence, wire.BAD_LENGTH, "SET_TEMPERATURE takes mode u8, setpoint i16")
-        mode, centi = wire.TEC_REQUEST.unpack(frame.payload)
-        setpoint = centi / 100.0
-        low, high = self.truth.tec_range_c
-        if mode not in (wire.TEC_OFF, wire.TEC_ON):
-            return self._error(frame.sequence, wire.OUT_OF_RANGE, f"TEC mode {mode}")
-        if mode == wire.TEC_ON and not low <= setpoint <= high:
-            return self._error(frame.sequence, wire.OUT_OF_RANGE, f"setpoint {setpoint} C outside [{low}, {high}] C")
-        self.tec.set(mode == wire.TEC_ON, setpoint)
-        return self._status(frame)
-
-    def _get_temperature(self, frame):
-        if frame.payload:
-            return self._error(frame.sequence, wire.BAD_LENGTH, "GET_TEMPERATURE takes no payload")
-        if self.world.clock.instant:
-            self.world.clock.advance_to(self.tec.settle_time_s())
-        return self._status(frame)
+    @property
+    def temperature_settings(self):
+        """Where TemperatureResponder finds the setpoint range and the thermometer's noise."""
+        return self.truth
