@@ -293,7 +293,7 @@ def test_console_script(tmp_path, fitted):
 
 
 COMMANDS = ("apply", "header", "demo", "sim", "run", "runs", "show", "resume", "export", "fleet", "serve", "fit",
-            "field")
+            "field", "study")
 
 
 def _listed_commands(help_text: str) -> list[str]:
