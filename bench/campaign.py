@@ -334,8 +334,8 @@ class Campaign(_Strict):
     camera_grid: CameraGridProcedure = CameraGridProcedure()
     css_sweep: CssSweepProcedure = CssSweepProcedure()
     alignment: Alignment | None = None
-    # the fits at the run's end; None: every method of the sensor family (a CSS head: the kelly law alone, each law
-    # being a full fit with its held-out folds)
+    # the fits at the run's end; None: every method of the sensor family (a CSS head: the kelly law and the spline,
+    # bench.families.css.DEFAULT_METHODS, each law being a full fit with its held-out folds)
     methods: tuple[str, ...] | None = None
 
     @field_validator("methods")

@@ -429,11 +429,13 @@ def css_diodes_table(document: dict) -> Table:
     from calibration.css.diode import SHAPE_NAME
 
     law = document["response"]
-    shape = SHAPE_NAME[law]
+    spline = law not in SHAPE_NAME
+    shape = "spline" if spline else SHAPE_NAME[law]
     table = Table(title=f"Detectors ({law} law): m = S·(1 + c_T·ΔT)·R(n·s)·E(θ) + b + b_T·ΔT, ΔT = T − 25 °C; each "
-                        "fitted parameter ± 1σ", title_justify="left")
-    heads = ("channel", "S [A|V]", "b [A|V]", "normal θ, φ [°]", "± [°]", shape, "FOV θ_c [°]", "c_T [1/°C]",
-             "b_T [A|V/°C]", "χ²/dof")
+                        "fitted parameter ± 1σ" + ("; R a cubic spline in cos θ on fixed knots, 0 beyond its last "
+                                                  "(the field's edge)" if spline else ""), title_justify="left")
+    heads = ("channel", "S [A|V]", "b [A|V]", "normal θ, φ [°]", "± [°]", "spline knots" if spline else shape,
+             "field's edge [°]" if spline else "FOV θ_c [°]", "c_T [1/°C]", "b_T [A|V/°C]", "χ²/dof")
     for name in heads:
         table.add_column(name, justify="left" if name == "channel" else "right")
     for channel, entry in document["diodes"].items():
@@ -444,8 +446,11 @@ def css_diodes_table(document: dict) -> Table:
         cell = {name: _sd(v["value"], v["sd"] if v.get("fitted") else None, 4 if name in ("scale", "fov_half_deg")
                           else 3 if name in ("bias", shape) else 2) for name, v in p.items()}
         normal = entry["normal"]
+        knots = entry.get("spline_knots_deg") or []
         table.add_row(channel, cell["scale"], cell["bias"], f"{normal['zenith_deg']:.3f}, {normal['azimuth_deg']:.3f}",
-                      fmt(float("nan") if normal.get("sd_deg") is None else normal["sd_deg"], 3), cell[shape],
+                      fmt(float("nan") if normal.get("sd_deg") is None else normal["sd_deg"], 3),
+                      str(len(knots)) if spline else cell[shape],
+                      f"{knots[-1]:g}" if spline and knots else
                       "none" if p["fov_half_deg"]["value"] is None else cell["fov_half_deg"],
                       cell["temp_coeff_per_c"], cell["bias_temp_coeff_per_c"],
                       fmt(float("nan") if entry["fit"]["chi2_dof"] is None else entry["fit"]["chi2_dof"], 1))
@@ -478,29 +483,44 @@ def css_accuracy_table(metrics: dict) -> Table:
 def fit_css_command(
     data_csv: Path = typer.Argument(..., help="CSS bench data CSV (see the README)."),
     output: Optional[Path] = typer.Option(None, "--output", "-o", help="Write the calibration JSON here."),
-    response: str = typer.Option("kelly", "--response", "-r", metavar="kelly|power",
-                                 help="Every detector's angular response law: kelly (Basilisk's cos·(1 − e^(−cos²/κ)))"
-                                      " or power (cos^p)."),
+    response: Optional[str] = typer.Option(None, "--response", "-r", metavar="kelly|power|spline",
+                                           help="Every detector's angular response law: kelly (Basilisk's cos·(1 − "
+                                                "e^(−cos²/κ))), power (cos^p) or spline (a cubic spline in cos θ on "
+                                                "fixed knots, its end the field's cut-off). Default: kelly and spline "
+                                                "both fitted, the better held out kept."),
     header: Optional[Path] = typer.Option(None, "--header", help="Also write a C header for the head's MCU."),
     sensor: Optional[str] = typer.Option(None, "--sensor", "--sensor-id",
                                          help="Fit this sensor_id of a multi-sensor file."),
     json_out: Optional[Path] = typer.Option(None, "--json", help="Also write the fit's figures as JSON here."),
 ) -> None:
     """Fit a coarse-sun-sensor head's calibration (seed 000): every detector's scale, offset, normal, response and
-    temperature coefficients, and the Sun's direction scored held out."""
+    temperature coefficients, and the Sun's direction scored held out. Without --response the Kelly law and the
+    spline are both fitted and the one with the smaller held-out error of the Sun's direction is written."""
     import json
 
-    from .css_datafile import css_calibration_file, css_metrics, fit_css, read_css_frames
+    from calibration.css.diode import RESPONSES
 
-    if response not in ("kelly", "power"):
-        raise CalibrationError(f"--response must be kelly or power, got {response!r}")
+    from .css_datafile import (
+        DEFAULT_CSS_LAWS,
+        css_calibration_file,
+        css_metrics,
+        fit_css_laws,
+        rank_css_fits,
+        read_css_frames,
+    )
+
+    if response is not None and response not in RESPONSES:
+        raise CalibrationError(f"--response must be {', '.join(RESPONSES[:-1])} or {RESPONSES[-1]}, got {response!r}")
     frames = read_css_frames(data_csv, sensor_id=sensor)
     data = frames.data
+    laws = DEFAULT_CSS_LAWS if response is None else (response,)
     try:
         with err.status("fitting every detector and leaving directions out…"):
-            outcome = fit_css(data, response=response)
+            outcomes = fit_css_laws(data, laws)
     except CalibrationError as exc:
         raise DataFileError(data_csv, str(exc), column=getattr(exc, "column", None)) from None
+    outcome = rank_css_fits(outcomes)[0]
+    response = outcome.response
     document = css_calibration_file(outcome, source=str(data_csv), software=f"sunbench {_version()}")
     metrics = css_metrics(outcome)
     out.print(css_diodes_table(document))
@@ -519,6 +539,11 @@ def fit_css_command(
               f"{len(data.channels)} detector(s) from {escape(str(data_csv))}"
               + (f" (sensor {escape(data.sensor_id)})" if data.sensor_id else "")
               + f"; {len(outcome.valid_channels)} calibrated, {response} law", highlight=False)
+    if len(outcomes) > 1:
+        held = lambda o: "—" if o.sun_heldout is None else f"{o.sun_heldout.rms_deg:.4f}°"  # noqa: E731
+        out.print("response laws fitted: " + ", ".join(f"{o.response} (held-out RMS {held(o)})" for o in outcomes)
+                  + f"; the {response} law kept (the smaller held-out error of the Sun's direction, a near tie going "
+                    "to the law with fewer parameters)", highlight=False)
     text = css_header_from_document(document) if header else None  # a header that cannot be written: no file at all
     if output:
         write_calibration(output, document)

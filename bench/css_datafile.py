@@ -263,27 +263,65 @@ def signal_unit(channel: str) -> str:
 
 # --- fitting: the one place the bench calls calibration.css.calibrate -------------------------------------------
 
-def fit_css(data: CssBenchData, *, response: str | None = "kelly"):
+#: The response laws `fit css` and a run's end fit when none is named: the Kelly law and the spline, the better
+#: held out kept (:func:`rank_css_fits`)
+DEFAULT_CSS_LAWS = ("kelly", "spline")
+#: A fit with more parameters is preferred only when its held-out Sun direction RMS is below this share of the
+#: simpler fit's (the held-out figure of a few hundred readings is not exact; a tie goes to the simpler law)
+RANK_MARGIN = 0.95
+
+
+def fit_css(data: CssBenchData, *, response: str | None = "kelly", start=None):
     """Calibrate a head from its bench data with the response law `response` (None: ``kelly``):
-    :func:`calibration.css.calibrate.calibrate_css`, every channel present fitted, the Sun's direction held out."""
+    :func:`calibration.css.calibrate.calibrate_css`, every channel present fitted, the Sun's direction held out.
+    `start`: a calibration of the same data with another law to start each detector's fit from (its normal and
+    temperature coefficient)."""
     from calibration.css.calibrate import calibrate_css
 
-    return calibrate_css(data, response=response or "kelly")
+    return calibrate_css(data, response=response or "kelly", start=start)
+
+
+def fit_css_laws(data: CssBenchData, laws=DEFAULT_CSS_LAWS) -> list:
+    """:func:`fit_css` with each of `laws` in turn, the spline law started from a parametric law's fit when one
+    was fitted before it (its linear start then needs no search for the normals: work shared between the laws)."""
+    outcomes: list = []
+    for law in dict.fromkeys(laws):
+        start = next((o for o in outcomes if o.response != "spline"), None) if law == "spline" else None
+        outcomes.append(fit_css(data, response=law, start=start))
+    return outcomes
 
 
 def _sun(metrics) -> dict | None:
     return None if metrics is None else metrics.to_dict()
 
 
-def rank_css_fits(outcomes) -> list:
-    """The outcomes of :func:`fit_css`, best first: the smallest held-out RMS of the Sun's direction (then at the
-    fitted directions; a fit without the figure last)."""
-    def key(outcome):
-        held, nodes = outcome.sun_heldout, outcome.sun_at_nodes
-        return (math.inf if held is None or not math.isfinite(held.rms_deg) else held.rms_deg,
-                math.inf if nodes is None or not math.isfinite(nodes.rms_deg) else nodes.rms_deg)
+def _n_parameters(outcome) -> int:
+    return sum(len(f.free) for f in outcome.fits.values() if f.valid)
 
-    return sorted(outcomes, key=key)
+
+def rank_css_fits(outcomes) -> list:
+    """The outcomes of :func:`fit_css`, best first: the smallest RMS of the Sun's direction on directions the fit
+    never saw — held out, else at the check directions — with a margin for the number of fitted parameters: a
+    fit with more parameters (the spline law) comes first only when its figure is below :data:`RANK_MARGIN` × a
+    simpler one's. Fits without either figure come last, fewest parameters first (the figure at the fitted
+    directions would favour the most flexible law)."""
+    def figure(outcome):
+        for metrics in (outcome.sun_heldout, outcome.sun_check):
+            if metrics is not None and metrics.n_points and math.isfinite(metrics.rms_deg):
+                return metrics.rms_deg
+        return None
+
+    scored = sorted((o for o in outcomes if figure(o) is not None), key=lambda o: (figure(o), _n_parameters(o)))
+    ranked = []
+    while scored:
+        best = scored[0]
+        simpler = [o for o in scored if _n_parameters(o) < _n_parameters(best)
+                   and figure(best) >= RANK_MARGIN * figure(o)]
+        if simpler:
+            best = min(simpler, key=lambda o: (figure(o), _n_parameters(o)))
+        ranked.append(best)
+        scored.remove(best)
+    return ranked + sorted((o for o in outcomes if figure(o) is None), key=_n_parameters)
 
 
 def css_metrics(outcome) -> dict:
@@ -492,7 +530,6 @@ def quantiser_tables(diodes) -> dict:
     faces of the calibrated signal against incidence on each detector's own normal (25 °C, the bench's irradiance),
     raised to a dark floor of the mean offset + 3σ of the noise floor. A type without a calibrated detector keeps the
     listing's table."""
-    from calibration.css.diode import relative_response
     from calibration.css.quantiser import thresholds_from_response
 
     angles = np.arange(0.0, 90.5, 0.5)
@@ -501,8 +538,7 @@ def quantiser_tables(diodes) -> dict:
         chosen = [d for d in diodes if d.detector == kind]
         if not chosen:
             continue
-        curves = [d.scale * relative_response(np.cos(np.radians(angles)), d.response, d.shape, d.fov_half_deg)
-                  + d.bias for d in chosen]
+        curves = [d.scale * d.relative_response(np.cos(np.radians(angles))) + d.bias for d in chosen]
         floor = float(np.mean([d.bias for d in chosen]) + 3 * np.mean([d.sigma0 for d in chosen]))
         tables[name] = thresholds_from_response(angles, np.mean(curves, axis=0), floor=floor)
     return tables

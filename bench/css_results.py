@@ -175,7 +175,9 @@ def _rms(residual, mask, used) -> dict:
 def _parameter_rows(entry: dict, response: str, unit: str) -> list[dict]:
     """The document's parameters of one valid detector as table rows, each with its unit."""
     params = entry["parameters"]
-    units = {"scale": unit, "bias": unit, "tilt_u_deg": "°", "tilt_v_deg": "°", SHAPE_NAME[response]: "",
+    shape = {SHAPE_NAME[response]: ""} if response in SHAPE_NAME else {  # a spline: its coefficients
+        name: "" for name in params if name.startswith("spline_")}
+    units = {"scale": unit, "bias": unit, "tilt_u_deg": "°", "tilt_v_deg": "°", **shape,
              "fov_half_deg": "°", "temp_coeff_per_c": "1/°C", "bias_temp_coeff_per_c": f"{unit}/°C"}
     rows = []
     for name, u in units.items():

@@ -119,6 +119,9 @@ def test_fit_prints_every_detector_and_the_held_out_figures(fitted):
     assert "The Sun's direction [°]" in text and "held out *" in text and "check directions" in text
     assert "fitted directions" in text and "RMS / stated 1σ" in text
     assert "of 18 detector(s) from" in text and "sensor CSS-0001" in text and "18 calibrated, kelly law" in text
+    # without --response both laws are fitted and the better held out kept: on this Kelly-law head, the Kelly law
+    assert "response laws fitted: kelly (held-out RMS" in text and "spline (held-out RMS" in text
+    assert "the kelly law kept" in text
 
 
 def test_fit_writes_the_css_calibration_document(fitted, css_csv):
@@ -196,24 +199,58 @@ def test_the_header_compiles_and_computes_the_models_signals(workdir, fitted):
     text = header.read_text()
     assert "sunbench_css_signal" in text and "CSS-0001" in text and "held-out error: the Sun's direction RMS" in text
     assert "SBCSS_AZIMUTH_DECIDEG" in text and "bpw_sun, epd_sun rebuilt from this calibration" in text
+    assert_header_computes_the_model(workdir / "kelly", header, cal, 1e-12)
+
+
+def test_the_spline_law_is_fitted_written_and_exported_to_c(workdir, css_csv):
+    """`fit css --response spline` of the visible photodiodes: the document holds each detector's knots and
+    coefficients, the table says so, and the C header evaluates the very same spline (to 1e-12 of the signal)."""
+    rows = list(csv.reader(css_csv.read_text().splitlines()))
+    keep = [i for i, name in enumerate(rows[0]) if not name.endswith(("_uv_a", "_ir_v"))]
+    path = workdir / "vis-spline.csv"
+    with path.open("w", newline="") as fh:
+        csv.writer(fh).writerows([[row[i] for i in keep] for row in rows])
+    cal, header = workdir / "spline.json", workdir / "spline.h"
+    result = invoke("fit", "css", path, "--response", "spline", "-o", cal, "--header", header)
+    assert result.exit_code == 0, result.output
+    text = flat(result.stdout)
+    assert "Detectors (spline law)" in text and "6 calibrated, spline law" in text and "spline knots" in text
+    assert "response laws fitted" not in text  # one law asked for, one fitted
+    document = json.loads(cal.read_text())
+    entry = document["diodes"]["pz_vis"]
+    knots = entry["spline_knots_deg"]
+    assert document["response"] == "spline" and knots[0] == 0.0 and 60.0 < knots[-1] <= 90.0
+    assert [f"spline_{k}" for k in range(1, len(knots) + 1)] == [n for n in entry["parameters"] if
+                                                                 n.startswith("spline_")]
+    assert "spline_1" in entry["covariance"]["names"] and "kappa" not in entry["parameters"]
+    again = workdir / "spline-again.h"
+    assert invoke("header", cal, "-o", again).exit_code == 0 and again.read_text() == header.read_text()
+    assert "SUNBENCH_CSS_SPLINE_C" in header.read_text()
+    assert_header_computes_the_model(workdir / "spline", header, cal, 1e-12)
+
+
+def assert_header_computes_the_model(folder: Path, header: Path, cal: Path, tolerance: float) -> None:
+    """The header compiles warning-free, and its sunbench_css_signal() gives the Python model's signals of the
+    document's detectors at 400 random directions and temperatures to `tolerance` (relative)."""
+    folder.mkdir(exist_ok=True)
     compiler = c_compiler()
     done = subprocess.run([compiler, "-fsyntax-only", "-Wall", "-Wextra", "-Werror", "-x", "c", str(header)],
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     # the C model gives the Python model's signals, to rounding
-    program = workdir / "signals.c"
+    program = folder / "signals.c"
     program.write_text(f'#include <stdio.h>\n#include "{header}"\n'
                        "int main(void) { int k; double s[3], t;\n"
                        '  while (scanf("%d %lf %lf %lf %lf", &k, &s[0], &s[1], &s[2], &t) == 5)\n'
                        '    printf("%.17g\\n", sunbench_css_signal(k, s, t));\n  return 0; }\n')
-    exe = workdir / "signals"
+    exe = folder / "signals"
     done = subprocess.run([compiler, "-std=c99", "-Wall", "-Werror", str(program), "-o", str(exe), "-lm"],
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     rng = np.random.default_rng(3)
-    vectors = rng.normal(size=(40, 3))
+    vectors = rng.normal(size=(400, 3))
     vectors /= np.linalg.norm(vectors, axis=1, keepdims=True)
-    temperatures = rng.uniform(10, 40, 40)
+    temperatures = rng.uniform(10, 40, 400)
     lines, want = [], []
     for diode in diode_parameters_from_document(json.loads(cal.read_text())):
         k = CHANNELS.index(diode.channel)
@@ -222,7 +259,7 @@ def test_the_header_compiles_and_computes_the_models_signals(workdir, fitted):
     done = subprocess.run([str(exe)], input="\n".join(lines) + "\n", capture_output=True, text=True)
     got = np.array(done.stdout.split(), float).reshape(len(want), -1)
     want = np.array(want)
-    assert np.max(np.abs(got - want) / np.maximum(np.abs(want), 1e-15)) < 1e-12
+    assert np.max(np.abs(got - want) / np.maximum(np.abs(want), 1e-15)) < tolerance
 
 
 def test_header_command_writes_the_same_header(workdir, fitted):
@@ -236,7 +273,8 @@ def test_header_command_writes_the_same_header(workdir, fitted):
 # --- bad input -----------------------------------------------------------------------------------------------
 
 def test_unknown_response(css_csv):
-    assert_user_error(invoke("fit", "css", css_csv, "--response", "cosine"), "--response must be kelly or power")
+    assert_user_error(invoke("fit", "css", css_csv, "--response", "cosine"),
+                      "--response must be kelly, power or spline")
 
 
 def test_bad_cell(tmp_path, css_csv):

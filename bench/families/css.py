@@ -32,9 +32,10 @@ from . import Family, journal_fit, register
 #: Samples the module averages into one reading (the thesis' ADuC842 averages 16 conversions, digest §3.6)
 AVERAGE = 16
 
-#: The response laws fitted when a run ends unless the campaign's `methods` says otherwise (``[kelly, power]`` fits
-#: both and keeps the better held out; each is a full fit with its held-out folds)
-DEFAULT_METHODS = ("kelly",)
+#: The response laws fitted when a run ends unless the campaign's `methods` says otherwise: the Kelly law and the
+#: spline (calibration.css.spline), the better held out kept (:func:`bench.css_datafile.rank_css_fits`); each is a
+#: full fit with its held-out folds, the spline's started from the Kelly fit's normals
+DEFAULT_METHODS = ("kelly", "spline")
 
 #: Stages of a CSS plan: shutter-closed dark readings, fitted sweep points, never-fitted check directions
 DARK, SWEEP, CHECK = "dark", "sweep", "check"
@@ -278,15 +279,16 @@ def fit_inputs(session):
 
 def fit_run(catalogue, run_id: int, campaign, inputs=None, journal=None) -> list:
     """Fit the head's calibration to the run's lineage with every response law of the campaign's `methods` (default
-    :data:`DEFAULT_METHODS`; :func:`bench.css_datafile.fit_css`), keep each document, the best held out as chosen,
-    and journal its held-out figures, the rejected readings and the warnings."""
-    from ..css_datafile import css_calibration_file, css_fit_summary, css_metrics, fit_css, rank_css_fits
+    :data:`DEFAULT_METHODS`; :func:`bench.css_datafile.fit_css_laws`), keep each document, the best held out as
+    chosen (:func:`bench.css_datafile.rank_css_fits`), and journal its held-out figures, the rejected readings and
+    the warnings."""
+    from ..css_datafile import css_calibration_file, css_fit_summary, css_metrics, fit_css_laws, rank_css_fits
     from ..runner import software_version
 
     journal = journal or (lambda kind, message: catalogue.log_event(run_id, kind, message))
     run = catalogue.run(run_id)
     data = bench_data(catalogue, catalogue.lineage(run_id), sensor_id=run["sensor_id"])
-    outcomes = [fit_css(data, response=law) for law in (campaign.methods or DEFAULT_METHODS)]
+    outcomes = fit_css_laws(data, campaign.methods or DEFAULT_METHODS)
     chosen = rank_css_fits(outcomes)[0]
     for outcome in outcomes:
         document = css_calibration_file(outcome, source=f"run {run_id}", software=software_version(), created=False)

@@ -29,11 +29,12 @@ The document (:func:`css_document`) is a plain dict of JSON types:
 .. code-block:: text
 
     {"format": "sunbench-css-calibration", "version": 1, "family": "css", "sensor_id": str | null,
-     "response": "kelly" | "power", "reference_temperature_c": 25.0,
+     "response": "kelly" | "power" | "spline", "reference_temperature_c": 25.0,
      "model": {"signal": str, "noise": str, "fov_edge": "linear", "fov_edge_width_deg": 2.0,
                "tilt_axes": {face: [u, v]}},
      "diodes": {channel: {"valid": bool, "fault": str | null, "unit": "a" | "v",
                           "parameters": {name: {"value": float | null, "sd": float | null, "fitted": bool}},
+                          "spline_knots_deg": [float] (the spline law only),
                           "normal": {"zenith_deg", "azimuth_deg", "sd_deg"},
                           "covariance": {"names": [str], "matrix": [[float]]},
                           "noise": {"sigma0": float, "shot": float, "relative": float, "model": float,
@@ -46,9 +47,11 @@ The document (:func:`css_document`) is a plain dict of JSON types:
      "warnings": [str], "rejected": [{"row", "channel", "zenith_deg", "azimuth_deg", "reason"}]}
 
 ``parameters`` names: scale, bias, tilt_u_deg, tilt_v_deg, kappa (Kelly) or power, fov_half_deg (null: no cut-off),
-temp_coeff_per_c, bias_temp_coeff_per_c (:mod:`calibration.css.diode`). A faulty diode has ``valid`` false, its
-``fault`` and no parameters. :func:`apply_css_document` turns raw readings into Sun directions with nothing but the
-document.
+temp_coeff_per_c, bias_temp_coeff_per_c (:mod:`calibration.css.diode`); the spline law has no kappa or power but
+spline_1 … spline_<K+1>, the free coefficients of its cubic B-spline in cos θ on the knots ``spline_knots_deg``
+θ_0 = 0 … θ_K (:mod:`calibration.css.spline`: c = (0, spline_1 … spline_<K+1>, 1) from cos θ_K up to 1, R = 0
+beyond θ_K, R = max(0, spline)), and fov_half_deg null. A faulty diode has ``valid`` false, its ``fault`` and no
+parameters. :func:`apply_css_document` turns raw readings into Sun directions with nothing but the document.
 
 References
 ----------
@@ -71,6 +74,7 @@ from .diode import (
     REFERENCE_TEMPERATURE_C,
     RESPONSES,
     SHAPE_NAME,
+    SPLINE,
     TILT_AXES,
     DiodeParameters,
     HeadModel,
@@ -78,6 +82,7 @@ from .diode import (
 from .diode_fit import DiodeFit, RejectedReading, direction_groups, fit_diode
 from .estimate import estimate_sun
 from .head import CHANNELS, UNITS, split_channel
+from .spline import check_knots, n_free, spline_names
 
 #: The document's format tag, version and family.
 FORMAT = "sunbench-css-calibration"
@@ -240,15 +245,16 @@ def _channel_scores(residual, sigma) -> dict:
 
 
 def calibrate_css(data: CssBenchData, *, response: str = "kelly", folds: int = FOLDS, full_scale=None,
-                  fit_temperature="auto", fit_fov="auto", channels=None) -> CssCalibrationOutcome:
+                  fit_temperature="auto", fit_fov="auto", channels=None, spline_knots_deg=None,
+                  start: CssCalibrationOutcome | None = None) -> CssCalibrationOutcome:
     """Calibrate a CSS head from its bench data (module docstring, steps 1–4).
 
     Parameters
     ----------
     data : CssBenchData
         Light rows at known directions (with repeats), optionally dark rows and check rows.
-    response : {"kelly", "power"}
-        The angular response law of every detector's model.
+    response : {"kelly", "power", "spline"}
+        The angular response law of every detector's model (:mod:`calibration.css.diode`).
     folds : int
         Interleaved folds of the held-out scoring (0 or 1: none).
     full_scale : float or dict, optional
@@ -258,6 +264,12 @@ def calibrate_css(data: CssBenchData, *, response: str = "kelly", folds: int = F
         As :func:`~calibration.css.diode_fit.fit_diode`.
     channels : sequence of str, optional
         Fit only these (default every channel in the data).
+    spline_knots_deg : sequence of float, optional
+        The spline law's knots [°], the same for every detector (default: each detector's own, the grid's up to an
+        end its readings choose: :func:`~calibration.css.diode_fit.fit_diode`).
+    start : CssCalibrationOutcome, optional
+        A calibration of the same data with another law: each detector's fit starts from its normal and
+        temperature coefficient (the spline law's linear start then needs no search).
 
     Returns
     -------
@@ -285,9 +297,12 @@ def calibrate_css(data: CssBenchData, *, response: str = "kelly", folds: int = F
     rejected: list = []
     warnings: list = []
     for c in chans:
+        first = start.fits.get(c) if start is not None else None
         fit = fit_diode(c, sun[nodes], data.signal(c)[nodes], data.temperature_c[nodes], dark=data.dark[nodes],
                         groups=groups[nodes], response=response, row_id=data.row_id[nodes],
-                        full_scale=_full_scale_of(full_scale, c), fit_temperature=fit_temperature, fit_fov=fit_fov)
+                        full_scale=_full_scale_of(full_scale, c), fit_temperature=fit_temperature, fit_fov=fit_fov,
+                        spline_knots_deg=spline_knots_deg, initial=first.parameters if first is not None and
+                        first.valid else None)
         fits[c] = fit
         rejected += list(fit.rejected)
         warnings += list(fit.warnings)
@@ -442,6 +457,7 @@ def _diode_entry(fit: DiodeFit) -> dict:
         "noise": {"sigma0": p.sigma0, "shot": p.shot, "relative": p.noise_rel, "model": p.model_sd,
                   "source": fit.noise_source},
         "full_scale": p.full_scale,
+        **({"spline_knots_deg": list(p.spline_knots_deg)} if p.response == SPLINE else {}),
         "fit": {"chi2_dof": fit.chi2_dof, "rms": fit.rms, "rms_normalised": fit.rms_normalised,
                 "n_points": fit.n_points, "temperature_fitted": fit.temperature_fitted, "fov_fitted": fit.fov_fitted},
     })
@@ -456,7 +472,7 @@ def css_document(fits, *, sensor_id: str | None = None, response: str = "kelly",
     ----------
     fits : dict of str to DiodeFit, or iterable of DiodeFit
     sensor_id : str or None
-    response : {"kelly", "power"}
+    response : {"kelly", "power", "spline"}
     heldout : dict, optional
         :attr:`CssCalibrationOutcome.heldout`.
     warnings : sequence of str
@@ -473,7 +489,10 @@ def css_document(fits, *, sensor_id: str | None = None, response: str = "kelly",
            "model": {"signal": "scale·(1 + temp_coeff_per_c·(T − 25))·R(n·s)·E(θ) + bias"
                                " + bias_temp_coeff_per_c·(T − 25)",
                      "response": {"kelly": "γ(1 − exp(−γ²/κ))/(1 − exp(−1/κ)), γ > 0",
-                                  "power": "γ^p, γ > 0"}[response],
+                                  "power": "γ^p, γ > 0",
+                                  "spline": "Σ c_j B_j(γ), the clamped cubic B-splines in γ on the breakpoints "
+                                            "cos(spline_knots_deg), c = (0, spline_1 … spline_<K+1>, 1) from "
+                                            "γ = cos(θ_K) up to 1, R = max(0, that); 0 for γ ≤ cos(θ_K)"}[response],
                      "noise": "σ² = sigma0² + shot·|m| + (relative·m)²",
                      "fov_edge": "linear", "fov_edge_width_deg": FOV_EDGE_WIDTH_DEG,
                      "tilt_axes": {f: [list(u), list(v)] for f, (u, v) in TILT_AXES.items()},
@@ -516,6 +535,17 @@ def _number(value, what: str, *, allow_none: bool = False) -> float | None:
     return float(value)
 
 
+def _knots(entry: dict, channel: str) -> tuple:
+    """A spline diode's knots [°], checked."""
+    knots = entry.get("spline_knots_deg")
+    if not isinstance(knots, list) or not all(isinstance(k, (int, float)) and not isinstance(k, bool) for k in knots):
+        raise CalibrationFormatError(f"diode {channel}: the spline law needs `spline_knots_deg`, a list of numbers")
+    try:
+        return check_knots(knots)
+    except ValueError as exc:
+        raise CalibrationFormatError(f"diode {channel}: {exc}") from None
+
+
 def validate_css_document(doc) -> None:
     """Raise :class:`~calibration.errors.CalibrationFormatError` (naming the problem) unless `doc` is a CSS
     calibration this version reads.
@@ -555,7 +585,8 @@ def validate_css_document(doc) -> None:
         params = entry.get("parameters")
         if not isinstance(params, dict):
             raise CalibrationFormatError(f"diode {channel}: no \"parameters\"")
-        for name in _PARAMS + (SHAPE_NAME[response],):
+        law_names = (SHAPE_NAME[response],) if response != SPLINE else spline_names(n_free(_knots(entry, channel)))
+        for name in _PARAMS + law_names:
             if not isinstance(params.get(name), dict) or "value" not in params[name]:
                 raise CalibrationFormatError(f"diode {channel}: parameter `{name}` missing")
             value = _number(params[name]["value"], f"diode {channel}: parameter `{name}`",
@@ -564,7 +595,7 @@ def validate_css_document(doc) -> None:
                 raise CalibrationFormatError(f"diode {channel}: `{name}` {value}° is not a tilt of the face's normal")
         if _number(params["scale"]["value"], "scale") == 0:
             raise CalibrationFormatError(f"diode {channel}: zero scale")
-        if _number(params[SHAPE_NAME[response]]["value"], "shape") <= 0:
+        if response != SPLINE and _number(params[SHAPE_NAME[response]]["value"], "shape") <= 0:
             raise CalibrationFormatError(f"diode {channel}: `{SHAPE_NAME[response]}` must be positive")
         noise = entry.get("noise")
         if not isinstance(noise, dict):
@@ -595,12 +626,17 @@ def diode_parameters_from_document(doc: dict) -> list[DiodeParameters]:
             continue
         v = {k: p["value"] for k, p in entry["parameters"].items()}
         noise = entry["noise"]
+        if response == SPLINE:
+            knots = _knots(entry, channel)
+            law = {"spline_knots_deg": knots, "spline": tuple(v[n] for n in spline_names(n_free(knots)))}
+        else:
+            law = {"shape": v[SHAPE_NAME[response]]}
         out.append(DiodeParameters(channel, response, scale=v["scale"], bias=v["bias"], tilt_u_deg=v["tilt_u_deg"],
-                                   tilt_v_deg=v["tilt_v_deg"], shape=v[SHAPE_NAME[response]],
-                                   fov_half_deg=v["fov_half_deg"], temp_coeff_per_c=v["temp_coeff_per_c"],
+                                   tilt_v_deg=v["tilt_v_deg"], fov_half_deg=v["fov_half_deg"],
+                                   temp_coeff_per_c=v["temp_coeff_per_c"],
                                    bias_temp_coeff_per_c=v["bias_temp_coeff_per_c"], sigma0=noise["sigma0"],
                                    shot=noise["shot"], noise_rel=noise["relative"], full_scale=entry.get("full_scale"),
-                                   model_sd=noise.get("model", 0.0)))
+                                   model_sd=noise.get("model", 0.0), **law))
     return out
 
 

@@ -14,7 +14,11 @@ One detector (a photodiode's current [A] or a thermopile's voltage [V]) reads
   - ``kelly``: Basilisk's coarseSunSensor law R = γ (1 − exp(−γ²/κ)) / (1 − exp(−1/κ)) (γ > 0; 0 otherwise), the
     cosine with the extra fall-off near grazing incidence of a real detector; κ → 0 is the plain cosine, κ → ∞
     tends to γ³;
-  - ``power``: R = γ^p (γ > 0; 0 otherwise).
+  - ``power``: R = γ^p (γ > 0; 0 otherwise);
+  - ``spline``: R a cubic B-spline in γ on fixed knots θ_k over 0…90° (:mod:`calibration.css.spline`), R(1) = 1
+    and R = 0 beyond its last knot (and never below 0), its K + 1 coefficients ``spline_1`` … the law's parameters:
+    a smooth, flexible response that holds a detector's window, its package's shadow and its field-of-view cut-off
+    alike (no E: its θ_c is None).
 
 * E is the field-of-view cut-off at half-angle θ_c: a linear ramp of full width :data:`FOV_EDGE_WIDTH_DEG` centred
   on θ_c, E = clip((θ_c + w/2 − θ) / w, 0, 1), so least squares can move θ_c; no cut-off (E ≡ 1) when θ_c is None.
@@ -32,24 +36,40 @@ References
 ----------
 seed 000, eq. 3.1 (I = S_rel(φ)·A·Σ E S Δλ: the signal is a scale times a relative angular response), §3.1–3.4 (the
 detectors, their temperature coefficients), digest §8.1 item 1 and §8.3 items 7–8 (fit scale K, dark offset,
-normal misalignment, a cosine^n or other angular law); research note anchors-sunsensors §5 (Basilisk's
+normal misalignment, a cosine^n or other angular law, "pchip through knots"), Table C.1 (the response tabulated
+against the incidence); research note anchors-sunsensors §5 (Basilisk's
 coarseSunSensor: cos · Kelly factor · FOV cut-off, bias, scale factor).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
+from functools import cached_property
 
 import numpy as np
 
 from .head import CHANNELS, NORMALS, split_channel, vector_angles
+from .spline import (
+    SPLINE_KNOTS_DEG,
+    SplineSet,
+    check_knots,
+    cosine_coefficients,
+    evaluate,
+    n_free,
+    spline_basis,
+    spline_index,
+    spline_names,
+)
 
 #: Temperature at which S and b are quoted [°C]
 REFERENCE_TEMPERATURE_C = 25.0
 #: Angular response laws of the model
-RESPONSES = ("kelly", "power")
-#: The shape parameter's name by law
+RESPONSES = ("kelly", "power", "spline")
+#: The shape parameter's name by parametric law (the ``spline`` law has its coefficients ``spline_1`` … instead)
 SHAPE_NAME = {"kelly": "kappa", "power": "power"}
+#: Each law's code (:attr:`HeadModel.law`, the C header's SUNBENCH_CSS_RESPONSE)
+LAW_CODES = {"kelly": 0, "power": 1, "spline": 2}
+SPLINE = "spline"
 #: Full width of the field-of-view edge's linear ramp [°]
 FOV_EDGE_WIDTH_DEG = 2.0
 
@@ -64,7 +84,8 @@ TILT_AXES: dict[str, tuple[tuple[float, float, float], tuple[float, float, float
     "mz": ((1.0, 0.0, 0.0), (0.0, -1.0, 0.0)),
 }
 
-#: Names of the model's parameters in the order of a parameter vector (the shape is ``kappa`` or ``power``)
+#: Names of the model's parameters in the order of a parameter vector (the shape is ``kappa`` or ``power``; the
+#: ``spline`` law has no shape and its coefficients ``spline_1`` … after these)
 PARAMETER_NAMES = ("scale", "bias", "tilt_u_deg", "tilt_v_deg", "shape", "fov_half_deg", "temp_coeff_per_c",
                    "bias_temp_coeff_per_c")
 
@@ -184,15 +205,19 @@ def fov_edge(incidence_deg, fov_half_deg, width_deg: float = FOV_EDGE_WIDTH_DEG)
 
 
 def relative_response(cos_incidence, response: str, shape, fov_half_deg=None) -> np.ndarray:
-    """R(γ)·E(θ): the detector's response relative to normal incidence (module docstring) [unitless].
+    """R(γ)·E(θ) of a parametric law (``kelly`` or ``power``): the detector's response relative to normal incidence
+    (module docstring) [unitless]. A ``spline`` detector's is :meth:`DiodeParameters.relative_response`.
 
     References
     ----------
     seed 000 eq. 3.1 (S_rel); research note anchors-sunsensors §5 (cos · Kelly · FOV).
     """
+    if response not in SHAPE_NAME:
+        raise ValueError(f"relative_response takes a parametric law ({', '.join(SHAPE_NAME)}), got {response!r}; a "
+                         "spline detector's is DiodeParameters.relative_response")
     g = np.asarray(cos_incidence, float)
     fov = np.nan if fov_half_deg is None else fov_half_deg
-    return _response(g, np.asarray(response == "kelly"), np.asarray(shape, float), np.asarray(fov, float))[0]
+    return _response(g, np.asarray(LAW_CODES[response]), np.asarray(shape, float), np.asarray(fov, float))[0]
 
 
 def _kelly(g, kappa):
@@ -224,6 +249,9 @@ def _power(g, p):
 
 def _edge(g, fov):
     """E(θ(γ)) and its partials d/dγ, d/dθ_c; NaN θ_c: E ≡ 1."""
+    if np.all(np.isnan(fov)):
+        shape = np.broadcast_shapes(np.shape(g), np.shape(fov))
+        return np.ones(shape), np.zeros(shape), np.zeros(shape)
     theta = np.degrees(np.arccos(np.clip(g, -1.0, 1.0)))
     none = np.isnan(fov)
     fv = np.where(none, 0.0, fov)
@@ -236,16 +264,28 @@ def _edge(g, fov):
     return value, dg, d_fov
 
 
-def _response(g, is_kelly, shape, fov):
-    """R·E and partials d/dγ, d/dshape, d/dθ_c (arrays broadcast together)."""
-    if np.all(is_kelly):
+def _response(g, law, shape, fov, splines=()):
+    """R·E and partials d/dγ, d/dshape, d/dθ_c (arrays broadcast together; `law` codes of :data:`LAW_CODES`).
+
+    `splines`: (columns, :class:`~calibration.css.spline.SplineSet`) of the ``spline`` detectors, evaluated on the
+    last axis of `g` (:attr:`HeadModel.spline_set`); their shape partial is 0."""
+    law = np.asarray(law)
+    kelly, power = law == LAW_CODES["kelly"], law == LAW_CODES["power"]
+    if np.all(kelly):
         r, r_g, r_s = _kelly(g, shape)
-    elif not np.any(is_kelly):
+    elif np.all(power):
         r, r_g, r_s = _power(g, shape)
+    elif not np.any(kelly | power):
+        r = r_g = r_s = np.zeros(np.broadcast_shapes(np.shape(g), law.shape))
     else:
-        rk, rk_g, rk_s = _kelly(g, np.where(is_kelly, shape, 1.0))
-        rp, rp_g, rp_s = _power(g, np.where(is_kelly, 1.0, shape))
-        r, r_g, r_s = (np.where(is_kelly, a, b) for a, b in ((rk, rp), (rk_g, rp_g), (rk_s, rp_s)))
+        rk, rk_g, rk_s = _kelly(g, np.where(kelly, shape, 1.0))
+        rp, rp_g, rp_s = _power(g, np.where(power, shape, 1.0))
+        r, r_g, r_s = (np.where(kelly, a, np.where(power, b, 0.0)) for a, b in ((rk, rp), (rk_g, rp_g), (rk_s, rp_s)))
+    if splines:
+        r, r_g, r_s = (np.array(np.broadcast_to(a, np.broadcast_shapes(np.shape(g), law.shape))) for a in (r, r_g, r_s))
+        cols, spline_set = splines
+        r[..., cols], r_g[..., cols] = spline_set.evaluate(g[..., cols])
+        r_s[..., cols] = 0.0
     e, e_g, e_f = _edge(g, fov)
     return r * e, r_g * e + r * e_g, r_s * e, r * e_f
 
@@ -259,7 +299,7 @@ class DiodeParameters:
     ----------
     channel : str
         ``<face>_<detector>`` (:data:`calibration.css.head.CHANNELS`).
-    response : {"kelly", "power"}
+    response : {"kelly", "power", "spline"}
     scale : float
         S: signal at normal incidence, reference irradiance, 25 °C [A] (photodiodes) or [V] (thermopile).
     bias : float
@@ -267,9 +307,9 @@ class DiodeParameters:
     tilt_u_deg, tilt_v_deg : float
         The normal's tilts about the face's in-plane axes (:data:`TILT_AXES`) [°].
     shape : float
-        κ of the Kelly law or p of the power law [unitless].
+        κ of the Kelly law or p of the power law [unitless]; unused by the spline law.
     fov_half_deg : float or None
-        θ_c [°]; None: no cut-off.
+        θ_c [°]; None: no cut-off (always, as fitted, for the spline law: its spline holds the cut-off).
     temp_coeff_per_c : float
         c_T [1/°C].
     bias_temp_coeff_per_c : float
@@ -281,6 +321,11 @@ class DiodeParameters:
     model_sd : float
         RMS error of the model itself (its misfit beyond the noise at calibration, on lit readings) [A or V]: the
         sun-vector estimator weights a lit reading by √(σ² + model_sd²).
+    spline : tuple of float
+        The spline law's free coefficients c_1 … c_{K+1} (``spline_1`` …; :mod:`calibration.css.spline`); empty for
+        the other laws. Default for the spline law: the spline nearest the plain cosine.
+    spline_knots_deg : tuple of float
+        The spline law's knots θ_0 = 0 … θ_K [°] (default :data:`calibration.css.spline.SPLINE_KNOTS_DEG`).
     """
 
     channel: str
@@ -298,11 +343,23 @@ class DiodeParameters:
     noise_rel: float = 0.0
     full_scale: float | None = None
     model_sd: float = 0.0
+    spline: tuple = ()
+    spline_knots_deg: tuple = ()
 
     def __post_init__(self) -> None:
         split_channel(self.channel)
         if self.response not in RESPONSES:
             raise ValueError(f"no response law {self.response!r} (laws: {', '.join(RESPONSES)})")
+        if self.response == SPLINE:
+            knots = check_knots(self.spline_knots_deg or SPLINE_KNOTS_DEG)
+            coef = tuple(float(v) for v in (self.spline if len(self.spline) else cosine_coefficients(knots)))
+            if len(coef) != n_free(knots):
+                raise ValueError(f"{self.channel}: a spline on {len(knots)} knots has {n_free(knots)} coefficients, "
+                                 f"got {len(coef)}")
+            object.__setattr__(self, "spline_knots_deg", knots)
+            object.__setattr__(self, "spline", coef)
+        elif len(self.spline) or len(self.spline_knots_deg):
+            raise ValueError(f"{self.channel}: spline coefficients belong to the spline law, not {self.response}")
 
     @property
     def face(self) -> str:
@@ -322,18 +379,51 @@ class DiodeParameters:
         zen, az = normal_angles(self.face, self.tilt_u_deg, self.tilt_v_deg)
         return float(zen), float(az)
 
+    @property
+    def spline_names(self) -> tuple:
+        """``spline_1`` … of the spline law's coefficients (empty for the other laws)."""
+        return spline_names(len(self.spline))
+
     def values(self) -> dict:
-        """Parameter name → value, the shape under its own name (``kappa`` or ``power``)."""
+        """Parameter name → value, the shape under its own name (``kappa`` or ``power``); the spline law's
+        coefficients as ``spline_1`` … (it has no shape)."""
         out = {name: getattr(self, name) for name in PARAMETER_NAMES}
-        out[SHAPE_NAME[self.response]] = out.pop("shape")
+        shape = out.pop("shape")
+        if self.response == SPLINE:
+            out.update(zip(self.spline_names, self.spline))
+        else:
+            out[SHAPE_NAME[self.response]] = shape
         return out
 
+    def get(self, name: str) -> float | None:
+        """One parameter's value by name (:data:`PARAMETER_NAMES`, ``kappa``/``power``, ``spline_<k>``)."""
+        k = spline_index(name)
+        if k is not None:
+            return self.spline[k]
+        return getattr(self, "shape" if name in ("kappa", "power") else name)
+
     def with_values(self, **values) -> DiodeParameters:
-        """A copy with some values replaced (``kappa``/``power`` accepted for ``shape``)."""
+        """A copy with some values replaced (``kappa``/``power`` accepted for ``shape``, ``spline_<k>`` for one of
+        the spline's coefficients)."""
         for alias in ("kappa", "power"):
             if alias in values:
                 values["shape"] = values.pop(alias)
+        ks = {spline_index(name): name for name in values if spline_index(name) is not None}
+        if ks:
+            coef = list(values.pop("spline", self.spline))
+            for k, name in ks.items():
+                coef[k] = float(values.pop(name))
+            values["spline"] = tuple(coef)
         return replace(self, **values)
+
+    def relative_response(self, cos_incidence) -> np.ndarray:
+        """R(γ)·E(θ) of this detector at cosines of incidence [unitless] (module docstring).
+
+        References
+        ----------
+        seed 000 eq. 3.1 (S_rel).
+        """
+        return HeadModel.from_parameters([self]).responses_at(np.asarray(cos_incidence, float)[..., None])[..., 0]
 
     def signal(self, sun_vectors, temperature_c=REFERENCE_TEMPERATURE_C, *, irradiance=1.0) -> np.ndarray:
         """Noise-free signal [A or V] for unit sun vectors (..., 3) in the body frame (module docstring).
@@ -383,7 +473,8 @@ def signal_partials(params: DiodeParameters, sun_vectors, temperature_c, lit) ->
     -------
     m : ndarray (N,)
     partials : dict of name → ndarray (N,)
-        Per unit of each parameter (per ° for the angles).
+        Per unit of each parameter (per ° for the angles); the spline law's ``spline_1`` … too (its ``shape``
+        partial is 0).
 
     References
     ----------
@@ -394,9 +485,17 @@ def signal_partials(params: DiodeParameters, sun_vectors, temperature_c, lit) ->
     lit = np.asarray(lit, bool)
     n, dn_u, dn_v = _normal_partials(params.face, params.tilt_u_deg, params.tilt_v_deg)
     g = np.where(lit, s @ n, 0.0)
-    fov = np.nan if params.fov_half_deg is None else params.fov_half_deg
-    f, f_g, f_s, f_fov = _response(g, np.asarray(params.response == "kelly"), np.asarray(params.shape, float),
-                                   np.asarray(fov, float))
+    fov = np.asarray(np.nan if params.fov_half_deg is None else params.fov_half_deg, float)
+    basis_values = None
+    if params.response == SPLINE:
+        basis = spline_basis(params.spline_knots_deg)
+        r, r_g = evaluate(basis.breakpoints, basis.polynomial(params.spline), g)
+        e, e_g, e_f = _edge(g, fov)
+        f, f_g, f_s, f_fov = r * e, r_g * e + r * e_g, np.zeros_like(g), r * e_f
+        basis_values = np.where(lit & (r > 0.0), basis.free_basis(g)[0] * e, 0.0)  # R = max(0, spline)
+    else:
+        f, f_g, f_s, f_fov = _response(g, np.asarray(LAW_CODES[params.response]), np.asarray(params.shape, float),
+                                       fov)
     f, f_g, f_s, f_fov = (np.where(lit, a, 0.0) for a in (f, f_g, f_s, f_fov))
     gain = 1.0 + params.temp_coeff_per_c * dt
     amp = params.scale * gain
@@ -411,6 +510,8 @@ def signal_partials(params: DiodeParameters, sun_vectors, temperature_c, lit) ->
         "temp_coeff_per_c": params.scale * dt * f,
         "bias_temp_coeff_per_c": dt * np.ones_like(m),
     }
+    if basis_values is not None:
+        partials.update(zip(params.spline_names, amp * basis_values))
     return m, partials
 
 
@@ -426,14 +527,17 @@ class HeadModel:
         True unit normals.
     scale, bias, shape, fov_half_deg, temp_coeff_per_c, bias_temp_coeff_per_c : ndarray (K,)
         As :class:`DiodeParameters`; θ_c NaN for no cut-off.
-    is_kelly : ndarray of bool (K,)
-        Kelly law (else power law).
+    law : ndarray of int (K,)
+        Each detector's response law, :data:`LAW_CODES`.
     sigma0, shot, noise_rel : ndarray (K,)
         Noise model.
     full_scale : ndarray (K,)
         Saturation level, +inf when unknown.
     model_sd : ndarray (K,)
         The model's own RMS error [A or V] (:class:`DiodeParameters`).
+    spline_pp : tuple
+        Per detector: (breakpoints, polynomial (K, 4)) of its spline (:mod:`calibration.css.spline`), None for the
+        parametric laws.
     """
 
     channels: tuple
@@ -444,12 +548,13 @@ class HeadModel:
     fov_half_deg: np.ndarray
     temp_coeff_per_c: np.ndarray
     bias_temp_coeff_per_c: np.ndarray
-    is_kelly: np.ndarray
+    law: np.ndarray
     sigma0: np.ndarray
     shot: np.ndarray
     noise_rel: np.ndarray
     full_scale: np.ndarray
     model_sd: np.ndarray
+    spline_pp: tuple = field(default=(), repr=False)
     parameters: tuple = field(default=(), repr=False)
 
     @classmethod
@@ -469,10 +574,10 @@ class HeadModel:
                    arr("bias"), arr("shape"),
                    np.array([np.nan if p.fov_half_deg is None else p.fov_half_deg for p in params], float),
                    arr("temp_coeff_per_c"), arr("bias_temp_coeff_per_c"),
-                   np.array([p.response == "kelly" for p in params], bool), arr("sigma0"), arr("shot"),
+                   np.array([LAW_CODES[p.response] for p in params], int), arr("sigma0"), arr("shot"),
                    arr("noise_rel"),
                    np.array([np.inf if p.full_scale is None else p.full_scale for p in params], float),
-                   arr("model_sd"), params)
+                   arr("model_sd"), tuple(_spline_pp(p) for p in params), params)
 
     def __len__(self) -> int:
         return len(self.channels)
@@ -483,8 +588,18 @@ class HeadModel:
         if self.parameters:
             return HeadModel.from_parameters([self.parameters[i] for i in idx])
         kw = {f.name: getattr(self, f.name)[idx] for f in fields(self)
-              if f.name not in ("channels", "parameters")}
-        return HeadModel(tuple(channels), **kw)
+              if f.name not in ("channels", "parameters", "spline_pp")}
+        pp = tuple(self.spline_pp[i] for i in idx) if self.spline_pp else ()
+        return HeadModel(tuple(channels), **kw, spline_pp=pp)
+
+    @cached_property
+    def spline_set(self) -> tuple:
+        """(columns, :class:`~calibration.css.spline.SplineSet`) of the spline detectors; () without one."""
+        cols = [j for j, pp in enumerate(self.spline_pp) if pp is not None]
+        return (np.array(cols), SplineSet([self.spline_pp[j] for j in cols])) if cols else ()
+
+    def _response(self, g):
+        return _response(g, self.law, self.shape, self.fov_half_deg, self.spline_set)
 
     def _gain(self, temperature_c, irradiance):
         dt = np.asarray(temperature_c, float)[..., None] - REFERENCE_TEMPERATURE_C
@@ -510,7 +625,7 @@ class HeadModel:
         s = np.asarray(sun_vectors, float)
         g = s @ self.normals.T
         amp, dark = self._gain(temperature_c, irradiance)
-        return amp * _response(g, self.is_kelly, self.shape, self.fov_half_deg)[0] + dark
+        return amp * self._response(g)[0] + dark
 
     def signals_and_gradient(self, sun_vectors, temperature_c=REFERENCE_TEMPERATURE_C, *,
                              irradiance=1.0) -> tuple[np.ndarray, np.ndarray]:
@@ -523,7 +638,7 @@ class HeadModel:
         s = np.asarray(sun_vectors, float)
         g = s @ self.normals.T
         amp, dark = self._gain(temperature_c, irradiance)
-        f, f_g, _, _ = _response(g, self.is_kelly, self.shape, self.fov_half_deg)
+        f, f_g, _, _ = self._response(g)
         return amp * f + dark, (amp * f_g)[..., None] * self.normals
 
     def noise_sd(self, signals) -> np.ndarray:
@@ -552,7 +667,7 @@ class HeadModel:
         seed 000 eq. 3.1 (S_rel).
         """
         g = np.asarray(cos_incidence, float)
-        return _response(g, self.is_kelly, self.shape, self.fov_half_deg)[0]
+        return self._response(g)[0]
 
     def relative_responses(self, vectors) -> np.ndarray:
         """R·E of every detector for unit directions (..., 3): shape (..., K) [unitless].
@@ -562,11 +677,20 @@ class HeadModel:
         seed 000 eq. 3.1 (S_rel).
         """
         g = np.asarray(vectors, float) @ self.normals.T
-        return _response(g, self.is_kelly, self.shape, self.fov_half_deg)[0]
+        return self._response(g)[0]
+
+
+def _spline_pp(params: DiodeParameters):
+    """(breakpoints, polynomial) of a spline detector's response, None for the parametric laws."""
+    if params.response != SPLINE:
+        return None
+    basis = spline_basis(params.spline_knots_deg)
+    return basis.breakpoints, basis.polynomial(params.spline)
 
 
 def nominal_parameters(channel: str, *, response: str = "kelly", scale: float = 1.0) -> DiodeParameters:
-    """A detector on its nominal face normal with a plain-cosine-like law (κ 0.1, p 1) and no cut-off.
+    """A detector on its nominal face normal with a plain-cosine-like law (κ 0.1, p 1, the spline nearest the
+    cosine) and no cut-off.
 
     References
     ----------

@@ -17,16 +17,24 @@ returns a :class:`DiodeFit`:
 2. **What is fitted**: S, b, the two tilts, κ (or p); θ_c only when some reading lies beyond
    :data:`FOV_EVIDENCE_DEG` of incidence (otherwise no cut-off, and a warning); c_T and b_T only when the readings
    span :data:`MIN_TEMPERATURE_SPAN_C` or more. A parameter that ends on its bound is fixed there and said so (θ_c
-   at its upper bound: no cut-off inside the hemisphere).
+   at its upper bound: no cut-off inside the hemisphere). The ``spline`` law fits its coefficients ``spline_1`` …
+   instead of a shape and never θ_c (its spline ends at its last knot: it holds the cut-off itself).
 3. **Noise**, provisional: from the scatter of repeats (rows of one direction, :func:`direction_groups`) about a
    model-free description of the readings (a cubic in the nominal cos γ, with the temperature), else from that
    description's residual.
 4. **Start** from the nominal normal and a grid of shapes (and cut-offs), S and b (and c_T, b_T) solved by
-   weighted linear least squares at each.
+   weighted linear least squares at each. The spline law's signal is linear in S·c_j, b and b_T for a given normal
+   and c_T: they are solved by weighted linear least squares at the nominal normal (or at the normal and c_T of a
+   fit of another law passed as `initial`: :func:`calibration.css.calibrate.calibrate_css` with `start` passes the
+   Kelly fit's), then c_T from that response, and the spline again; its end θ_K, the field's edge, is the one of
+   smallest χ² + 2 p among ends every 0.5° (:func:`_spline_end`; again after the robust fit and after the first
+   round of step 7, at the fitted normal).
 5. **Robust fit** (soft-L1 on residuals whitened by the noise, scale :data:`ROBUST_SCALE_SIGMAS` σ); a reading
    whose whitened residual stands more than :data:`OUTLIER_SIGMAS` robust sigmas from its 8 nearest directions'
    is rejected and named (a glint, a spike: the model's smooth misfit is shared by the neighbours and never
-   rejected); if more than :data:`SCREEN_MAX_SHARE` of the readings would go, none is, with a warning.
+   rejected); if more than :data:`SCREEN_MAX_SHARE` of the readings would go, none is, with a warning. The spline
+   law's misfit is a function of the incidence that can turn sharply at a cap shadow's edges: its neighbours are the
+   8 readings nearest in incidence, and a reading its own repeats agree with is never rejected.
 6. **Noise model** σ² = σ₀² + q|m| + (r m)² from the scatter of the residuals within each repeat group
    (:func:`fit_noise_model`, a Gamma likelihood, so a pair's variance counts for one degree of freedom), or from
    the residuals themselves when there are no repeats (then χ²/dof ≈ 1 by construction, said so). σ₀ is floored at
@@ -36,13 +44,16 @@ returns a :class:`DiodeFit`:
    the estimator's, and said so.
 7. **Weighted least squares** (plain loss), alternating with the noise model for :data:`NOISE_ITERATIONS` rounds;
    θ_c is then profiled (others held) and the fit restarted where the profile finds a clearly lower χ² (the ramp
-   makes χ²(θ_c) piecewise, flat between the readings' incidences).
+   makes χ²(θ_c) piecewise, flat between the readings' incidences). The spline law's model error applies where the
+   reading or the model is lit (its spline may be wrong where a detector reads dark), its roughness penalty
+   (:data:`calibration.css.spline.SPLINE_ROUGHNESS`) joins the residuals, and Levenberg–Marquardt solves it (its
+   bounds checked after).
 8. **Covariance** (JᵀJ)⁻¹ of the whitened residuals, scaled by χ²/dof when that exceeds 1; standard deviations and
    the correlation matrix. θ_c's 1σ is at least the half-width of its profile's Δχ² ≤ 1 interval; when no reading
    lies inside its ramp the profile is flat between two readings and θ_c is that interval's centre, ±half of it.
 
 With a given noise model (the held-out folds of :func:`calibration.css.calibrate.calibrate_css` pass the full
-fit's) steps 3, 5 and 6 are skipped.
+fit's) steps 3, 5 and 6 are skipped (and the spline law keeps the full fit's knots).
 
 References
 ----------
@@ -68,6 +79,7 @@ from .diode import (
     REFERENCE_TEMPERATURE_C,
     RESPONSES,
     SHAPE_NAME,
+    SPLINE,
     DiodeParameters,
     face_axes,
     normal_angles,
@@ -75,6 +87,7 @@ from .diode import (
     signal_partials,
 )
 from .head import split_channel, vector_angles
+from .spline import END_MIN_DEG, END_STEP_DEG, FIXED_LOW, SPLINE_ROUGHNESS, knots_ending_at, spline_basis
 
 #: A reading farther than this many robust sigmas from its neighbours' residual is an outlier.
 OUTLIER_SIGMAS = 6.0
@@ -111,8 +124,12 @@ BOUNDS = {"tilt_u_deg": (-30.0, 30.0), "tilt_v_deg": (-30.0, 30.0), "kappa": (1e
 LIT_SIGMAS = 5.0
 #: χ²/dof more than this many √(2/dof) above 1 gets a model error (:func:`model_error`).
 MODEL_ERROR_SIGMAS = 5.0
+#: Rounds of reweighting that make the spline law's soft-L1 fit (:meth:`_Problem.solve`).
+ROBUST_ROUNDS = 4
 #: Rounds of noise estimate and weighted fit.
 NOISE_ITERATIONS = 4
+#: Ends of the spline law whose criterion (χ² + 2 p) is within this of the best are as good (:func:`_spline_end`).
+END_TOLERANCE = 2.0
 #: Step of θ_c's profile [°].
 FOV_PROFILE_STEP_DEG = 0.1
 #: A fitted θ_c above this is no cut-off inside the hemisphere [°].
@@ -162,11 +179,12 @@ class DiodeFit:
     Attributes
     ----------
     channel : str
-    response : {"kelly", "power"}
+    response : {"kelly", "power", "spline"}
     parameters : DiodeParameters or None
         The fitted model with its noise model; None when the channel is faulty.
     free : tuple of str
-        Fitted parameter names in the covariance's order (``kappa``/``power`` for the shape).
+        Fitted parameter names in the covariance's order (``kappa``/``power`` for the shape; ``spline_1`` … for the
+        spline law's coefficients).
     values, sd : dict of str to float
         Every parameter's value, and the 1σ of the fitted ones (NaN where the covariance is singular).
     covariance, correlation : ndarray (p, p)
@@ -502,18 +520,138 @@ def _initial(params: DiodeParameters, s, t, lit, y, free, fov_candidates, weight
     return replace(params, **values)
 
 
+def _initial_spline(params: DiodeParameters, s, t, lit, y, free, weights=None, *,
+                    estimate_c_t: bool = True) -> tuple[DiodeParameters, float]:
+    """Start of the spline law at the normal and c_T of `params` (module docstring step 4), and its χ² (the
+    weighted residuals' and the roughness penalty's): the signal (1 + c_T ΔT)·Σ (S c_j) B_j + S B_{K+2} + b
+    (+ b_T ΔT) is linear in S·c_j, S, b and b_T; with c_T 0, the temperature fitted and `estimate_c_t`, c_T comes
+    from that first response (columns f, 1, f ΔT, ΔT) and the spline is solved again with it."""
+    basis = spline_basis(params.spline_knots_deg)
+    g = np.where(lit, s @ params.normal, 0.0)
+    dt = t - REFERENCE_TEMPERATURE_C
+    b_all, _ = basis.all_basis(g)
+    b_all = np.where(lit, b_all, 0.0)
+    w = np.ones_like(y) if weights is None else np.asarray(weights, float)
+    fit_t = "temp_coeff_per_c" in free
+
+    # the roughness penalty's rows (module docstring of calibration.css.spline), in units of S·c
+    root, fixed = basis.roughness()
+    level = max(float(np.ptp(y[lit])) if lit.any() else 0.0, 1e-300)
+    pen = np.sqrt(SPLINE_ROUGHNESS) / level * np.column_stack([root, fixed] + [np.zeros(root.shape[0])] * (
+        2 if fit_t else 1))
+
+    def solve(c_t):
+        gain = 1.0 + c_t * dt
+        cols = [*(gain * b_all[FIXED_LOW:]), np.ones_like(y)] + ([dt] if fit_t else [])
+        a = np.vstack([np.column_stack(cols) * w[:, None], pen])
+        rhs = np.r_[y * w, np.zeros(pen.shape[0])]
+        ata = a.T @ a
+        d = np.sqrt(np.diag(ata))
+        d = np.where(d > 0, d, 1.0)
+        try:  # the normal equations, equilibrated (the penalty keeps them regular)
+            coef = np.linalg.solve(ata / np.outer(d, d), (a.T @ rhs) / d) / d
+        except np.linalg.LinAlgError:
+            coef = np.linalg.lstsq(a, rhs, rcond=None)[0]
+        scale = coef[basis.n_free]
+        if not np.isfinite(scale) or scale == 0:
+            return None, np.inf
+        return ({"spline": tuple(float(v) for v in coef[:basis.n_free] / scale), "scale": float(scale),
+                 "bias": float(coef[basis.n_free + 1]),
+                 "bias_temp_coeff_per_c": float(coef[basis.n_free + 2]) if fit_t else params.bias_temp_coeff_per_c},
+                float(np.sum((a @ coef - rhs) ** 2)))
+
+    c_t = params.temp_coeff_per_c if fit_t else 0.0
+    values, chi2 = solve(c_t)
+    if values is None:
+        return params, np.inf
+    out = replace(params, **values)
+    if fit_t and params.temp_coeff_per_c == 0.0 and estimate_c_t:
+        f = np.where(lit, out.relative_response(g), 0.0)
+        a = np.column_stack([f, np.ones_like(y), f * dt, dt])
+        coef, *_ = np.linalg.lstsq(a * w[:, None], y * w, rcond=None)
+        if coef[0] != 0 and np.isfinite(coef[0]):
+            c_t = float(np.clip(coef[2] / coef[0], -0.05, 0.05))
+            values, chi2_t = solve(c_t)
+            if values is not None:
+                out, chi2 = replace(params, **values, temp_coeff_per_c=c_t), chi2_t
+    return out, chi2
+
+
+def _with_spline(free, params: DiodeParameters) -> list:
+    """`free` with the spline's coefficient names replaced by those of `params` (in their place)."""
+    names = list(params.spline_names)
+    out, placed = [], False
+    for name in free:
+        if name.startswith("spline_"):
+            if not placed:
+                out += names
+                placed = True
+        else:
+            out.append(name)
+    return out if placed else out[:4] + names + out[4:]
+
+
+def _spline_end(params: DiodeParameters, s, t, lit, y, free, weights, *, near: float | None = None
+                ) -> tuple[DiodeParameters, float]:
+    """The spline's end θ_K (:func:`calibration.css.spline.knots_ending_at`, its knots thinned where too few of the
+    directions' incidences on the normal of `params` support them) with the smallest χ² + 2 p of the linear start
+    (:func:`_initial_spline`, the normal and c_T of `params` held; p its coefficients, Akaike's criterion: a later
+    end has more knots, and would win on χ² alone where the readings cannot tell): every 5° from
+    :data:`~calibration.css.spline.END_MIN_DEG` to 90°, then every :data:`~calibration.css.spline.END_STEP_DEG`
+    within 5° of the best (`near`: only within 2.5° of that end, found before). Where the criterion stays within
+    :data:`END_TOLERANCE` of its minimum over a run of ends (no reading between the last lit incidence and the
+    first dark one tells them apart), the run's middle is taken, as θ_c's interval centre is. Returns that start
+    and its criterion."""
+    tried: dict = {}
+    directions = np.unique(np.round(s[lit], 9), axis=0) if lit.any() else np.zeros((0, 3))
+    support = np.degrees(np.arccos(np.clip(directions @ params.normal, -1.0, 1.0)))
+    support = support[support < 90.0]
+
+    def at(end):
+        end = round(float(end), 6)
+        if end not in tried:
+            knots = knots_ending_at(end, support=support)
+            trial = replace(params, spline_knots_deg=knots, spline=(0.0,) * len(knots))  # _initial_spline sets them
+            start, chi2 = _initial_spline(trial, s, t, lit, y, _with_spline(free, trial), weights,
+                                          estimate_c_t=False)
+            tried[end] = start, chi2 + 2.0 * len(start.spline)
+        return tried[end]
+
+    if near is None:
+        best, window = min(np.arange(END_MIN_DEG, 90.0 + 1e-9, 5.0), key=lambda e: at(e)[1]), 5.0
+    else:
+        best, window = float(near), 2.5
+    fine = np.arange(max(END_MIN_DEG, best - window), min(90.0, best + window) + 1e-9, END_STEP_DEG)
+    crit = np.array([at(e)[1] for e in fine])
+    i = int(np.argmin(crit))
+    flat = crit <= crit[i] + END_TOLERANCE
+    a = b = i
+    while a > 0 and flat[a - 1]:
+        a -= 1
+    while b < fine.size - 1 and flat[b + 1]:
+        b += 1
+    return at(fine[(a + b) // 2])
+
+
 class _Problem:
-    """The whitened residuals of one detector's readings and their Jacobian over the free parameters."""
+    """The whitened residuals of one detector's readings and their Jacobian over the free parameters; for the
+    spline law, the roughness penalty's rows after them (:data:`calibration.css.spline.SPLINE_ROUGHNESS`)."""
 
     def __init__(self, base: DiodeParameters, free, s, t, lit, y, sigma):
         self.base, self.free = base, tuple(free)
         self.s, self.t, self.lit, self.y, self.sigma = s, t, lit, y, sigma
+        self.penalty = None
+        names = base.spline_names
+        if names and all(n in self.free for n in names):
+            root, fixed = spline_basis(base.spline_knots_deg).roughness()
+            weight = np.sqrt(SPLINE_ROUGHNESS)
+            self.penalty = (np.array([self.free.index(n) for n in names]), weight * root, weight * fixed)
 
     def params(self, x) -> DiodeParameters:
-        return replace(self.base, **dict(zip(self.free, (float(v) for v in x))))
+        return self.base.with_values(**dict(zip(self.free, (float(v) for v in x))))
 
     def x0(self, params: DiodeParameters) -> np.ndarray:
-        return np.array([getattr(params, n) for n in self.free], float)
+        return np.array([params.get(n) for n in self.free], float)
 
     def _evaluate(self, x):
         key = np.asarray(x, float).tobytes()
@@ -521,33 +659,70 @@ class _Problem:
             self._key, self._value = key, signal_partials(self.params(x), self.s, self.t, self.lit)
         return self._value
 
-    def residuals(self, x):
+    def data_residuals(self, x):
         m, _ = self._evaluate(x)
         return (self.y - m) / self.sigma
 
+    def residuals(self, x):
+        r = self.data_residuals(x)
+        if self.penalty is None:
+            return r
+        idx, root, fixed = self.penalty
+        return np.concatenate([r, root @ np.asarray(x, float)[idx] + fixed])
+
     def jacobian(self, x):
         _, partials = self._evaluate(x)
-        return -np.column_stack([partials[n] for n in self.free]) / self.sigma[:, None]
+        jac = -np.column_stack([partials[n] for n in self.free]) / self.sigma[:, None]
+        if self.penalty is None:
+            return jac
+        idx, root, _ = self.penalty
+        rows = np.zeros((root.shape[0], jac.shape[1]))
+        rows[:, idx] = root
+        return np.vstack([jac, rows])
 
     def solve(self, params: DiodeParameters, *, loss="linear", f_scale=1.0):
         lo = np.array([_bounds(n, self.base.response)[0] for n in self.free])
         hi = np.array([_bounds(n, self.base.response)[1] for n in self.free])
         margin = np.where(np.isfinite(hi - lo), 1e-9 * (hi - lo), 0.0)
         x0 = np.clip(self.x0(params), lo + margin, hi - margin)
+        if self.penalty is not None and loss in ("linear", "soft_l1"):
+            # the spline law: Levenberg–Marquardt (MINPACK's own QR, far cheaper than the trust region's SVD of a
+            # Jacobian this wide, and no threaded LAPACK to wait on), its bounds checked after it (a step beyond one
+            # falls back to the bounded solver); the soft-L1 loss by reweighting: w = (1 + (r/f)²)^(−1/2), the loss'
+            # own weight, for ROBUST_ROUNDS rounds
+            sigma = self.sigma
+            x = x0
+            try:
+                for _ in range(1 if loss == "linear" else ROBUST_ROUNDS):
+                    if loss != "linear":
+                        r = self.data_residuals(x) * (self.sigma / sigma)
+                        self.sigma = sigma * (1.0 + (r / f_scale) ** 2) ** 0.25
+                    sol = least_squares(self.residuals, x, jac=self.jacobian, x_scale="jac", method="lm",
+                                        xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=400)
+                    x = sol.x
+            finally:
+                self.sigma = sigma
+            if np.all((sol.x >= lo) & (sol.x <= hi)):
+                return self.params(sol.x), sol
         sol = least_squares(self.residuals, x0, jac=self.jacobian, bounds=(lo, hi), loss=loss, f_scale=f_scale,
                             x_scale="jac", method="trf", xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=400)
         return self.params(sol.x), sol
 
 
-def _neighbour_outliers(z, s, lit, rows):
-    """Readings whose whitened residual stands out from their 8 nearest directions' (module docstring step 5)."""
+def _neighbour_outliers(z, s, lit, rows, incidence=None, groups=None, temperature=None):
+    """Readings whose whitened residual stands out from their 8 nearest directions' (module docstring step 5).
+
+    The spline law (`incidence` [°], `groups`, `temperature` [°C]): from the 8 readings nearest in incidence, and
+    from its repeats (its direction's other readings within 1 °C) when it has some — the law's misfit, a function of
+    the incidence that can be sharp near a cap's shadow or the cut-off, is shared by the repeats, a spike is not."""
     z = np.asarray(z, float)
     dev = np.zeros(rows.size)
     light = lit[rows]
     if light.sum() >= 10:
         idx = rows[light]
         k = min(10, idx.size)
-        _, nb = cKDTree(s[idx]).query(s[idx], k=k)
+        points = s[idx] if incidence is None else np.asarray(incidence, float)[idx][:, None]
+        _, nb = cKDTree(points).query(points, k=k)
         own = np.arange(idx.size)[:, None]
         others = np.where(nb == own, -1, nb)
         # the first 8 neighbours that are not the reading itself
@@ -559,7 +734,16 @@ def _neighbour_outliers(z, s, lit, rows):
         zd = z[~light]
         dev[~light] = np.abs(zd - np.median(zd))
     scale = max(1.0, 1.4826 * float(np.median(dev)))
-    return dev > OUTLIER_SIGMAS * scale, dev / scale
+    bad = dev > OUTLIER_SIGMAS * scale
+    if groups is not None and bad.any():
+        g = np.asarray(groups)[rows]
+        temp = np.zeros(rows.size) if temperature is None else np.asarray(temperature, float)[rows]
+        for i in np.flatnonzero(bad & light):
+            mates = np.flatnonzero((g == g[i]) & (np.arange(rows.size) != i) & (np.abs(temp - temp[i]) <= 1.0)) \
+                if g[i] >= 0 else []
+            if len(mates) and abs(z[i] - np.median(z[mates])) <= OUTLIER_SIGMAS * scale:
+                bad[i] = False
+    return bad, dev / scale
 
 
 def _covariance(problem: _Problem, x, chi2_dof):
@@ -634,7 +818,7 @@ def _escape_fov(problem: _Problem, params: DiodeParameters) -> DiodeParameters:
     the fit again from there (the ramp makes χ²(θ_c) piecewise, with flats between the readings' incidences)."""
     for _ in range(3):
         grid, chi2 = _fov_profile(problem, params)
-        current = float(np.sum(problem.residuals(problem.x0(params)) ** 2))
+        current = float(np.sum(problem.data_residuals(problem.x0(params)) ** 2))
         best = int(np.argmin(chi2))
         if not chi2[best] < current - 1.0:
             break
@@ -683,9 +867,26 @@ def _fov_interval(problem: _Problem, params: DiodeParameters, cov, ok, chi2_eff)
     return params, cov, sub_ok, note
 
 
+def _knot_words(knots) -> str:
+    """The knots in words: "every 10° from 0 to 40°, every 2.5° to 75°, 76.5°"."""
+    k = np.asarray(knots, float)
+    steps = np.round(np.diff(k), 6)
+    parts, i = [], 0
+    while i < steps.size:
+        j = i
+        while j + 1 < steps.size and steps[j + 1] == steps[i]:
+            j += 1
+        if j > i:
+            parts.append(f"every {steps[i]:g}° " + (f"from {k[i]:g} " if not parts else "") + f"to {k[j + 1]:g}°")
+        else:
+            parts.append((f"{k[i]:g}°, " if not parts else "") + f"{k[j + 1]:g}°")
+        i = j + 1
+    return ", ".join(parts)
+
+
 def fit_diode(channel: str, sun_vectors, signal, temperature_c, *, dark=None, groups=None, response: str = "kelly",
               row_id=None, full_scale: float | None = None, fit_temperature="auto", fit_fov="auto",
-              initial: DiodeParameters | None = None, noise=None) -> DiodeFit:
+              initial: DiodeParameters | None = None, noise=None, spline_knots_deg=None) -> DiodeFit:
     """Fit one detector's model to its readings (module docstring, steps 1–7).
 
     Parameters
@@ -702,7 +903,7 @@ def fit_diode(channel: str, sun_vectors, signal, temperature_c, *, dark=None, gr
         Readings with the light off.
     groups : array_like of int (N,), optional
         Repeat groups (readings of one direction; −1 none). Default :func:`direction_groups`.
-    response : {"kelly", "power"}
+    response : {"kelly", "power", "spline"}
     row_id : array_like of int (N,), optional
         Row names for messages. Default 1…N.
     full_scale : float, optional
@@ -711,11 +912,15 @@ def fit_diode(channel: str, sun_vectors, signal, temperature_c, *, dark=None, gr
         Fit c_T and b_T ("auto": when the readings span ≥ :data:`MIN_TEMPERATURE_SPAN_C`).
     fit_fov : "auto", bool or float
         Fit θ_c ("auto": when a reading lies beyond :data:`FOV_EVIDENCE_DEG`); a float fixes it there; False: no
-        cut-off.
+        cut-off. The spline law takes "auto" or False only (its spline holds the cut-off).
     initial : DiodeParameters, optional
-        Start here instead of the grid (the held-out folds start from the full fit).
+        Start here instead of the grid (the held-out folds start from the full fit); a fit of another law gives the
+        spline law its start's normal and c_T.
     noise : (σ₀, q, r, model_sd), optional
         A noise model to use as it is (the held-out folds use the full fit's): no screening, no noise estimate.
+    spline_knots_deg : sequence of float, optional
+        The spline law's knots [°], held. Default: `initial`'s when it is a spline fit, else those of
+        :data:`calibration.css.spline.SPLINE_GRID_DEG` up to an end the readings choose (module docstring step 4).
 
     Returns
     -------
@@ -728,6 +933,13 @@ def fit_diode(channel: str, sun_vectors, signal, temperature_c, *, dark=None, gr
     face, detector = split_channel(channel)
     if response not in RESPONSES:
         raise ValueError(f"no response law {response!r} (laws: {', '.join(RESPONSES)})")
+    spline = response == SPLINE
+    adaptive = spline and spline_knots_deg is None and not (initial is not None and initial.response == SPLINE)
+    if spline and not (fit_fov == "auto" or fit_fov is False):
+        raise ValueError(f"the spline law has no separate field-of-view cut-off (its spline ends at its last knot), "
+                         f"got fit_fov={fit_fov!r}")
+    if spline_knots_deg is None and spline and initial is not None and initial.response == SPLINE:
+        spline_knots_deg = initial.spline_knots_deg
     y_all = np.asarray(signal, float).ravel()
     n = y_all.size
     s_all = np.asarray(sun_vectors, float).reshape(-1, 3)
@@ -819,7 +1031,8 @@ def fit_diode(channel: str, sun_vectors, signal, temperature_c, *, dark=None, gr
                       f"of {rise:.3g} {unit} from no light to normal incidence, {rise / noise_level:.1f}× its noise)")
     # 2. what is fitted
     fit_t = (t_span >= MIN_TEMPERATURE_SPAN_C) if fit_temperature == "auto" else bool(fit_temperature)
-    free = ["scale", "bias", "tilt_u_deg", "tilt_v_deg", "shape"]
+    base = DiodeParameters(channel, response, spline_knots_deg=tuple(spline_knots_deg or ()) if spline else ())
+    free = ["scale", "bias", "tilt_u_deg", "tilt_v_deg"] + (list(base.spline_names) if spline else ["shape"])
     if fit_t:
         free += ["temp_coeff_per_c", "bias_temp_coeff_per_c"]
         statements.append(f"c_T and b_T fitted: the readings span {t_span:.1f} °C")
@@ -830,7 +1043,9 @@ def fit_diode(channel: str, sun_vectors, signal, temperature_c, *, dark=None, gr
     inc_nom = np.degrees(np.arccos(np.clip(g_nom, -1, 1)))
     beyond = usable & lit_rows & (g_nom > 0) & (inc_nom > FOV_EVIDENCE_DEG)
     fixed_fov = None
-    if isinstance(fit_fov, bool) or fit_fov == "auto":
+    if spline:
+        fit_f = False
+    elif isinstance(fit_fov, bool) or fit_fov == "auto":
         fit_f = bool(beyond.any()) if fit_fov == "auto" else bool(fit_fov)
         if fit_fov == "auto" and not fit_f:
             warnings.append(f"{channel}: the FOV cut-off is not constrained: no reading beyond "
@@ -840,7 +1055,7 @@ def fit_diode(channel: str, sun_vectors, signal, temperature_c, *, dark=None, gr
         statements.append(f"θ_c held at {fixed_fov:g}°, as asked")
     if fit_f:
         free.append("fov_half_deg")
-    base = DiodeParameters(channel, response, fov_half_deg=fixed_fov)
+    base = replace(base, fov_half_deg=fixed_fov)
     s_rows, t_rows, lit_r, y_rows = s_safe[rows], t_all[rows], lit_rows[rows], y[rows]
     # 3. provisional noise, from the scatter of repeats about the model-free description (or its residual)
     floor = 0.0 if resolution is None else resolution / np.sqrt(12.0)
@@ -852,14 +1067,29 @@ def fit_diode(channel: str, sun_vectors, signal, temperature_c, *, dark=None, gr
     tiny = 1e-9 * float(np.max(np.abs(y_rows))) + 1e-300
     sigma0 = max(sigma0, tiny)
     # 4. start
-    if initial is not None and (not fit_f or initial.fov_half_deg is not None):
+    weights = 1.0 / np.sqrt(sigma0**2 + shot * np.abs(y_rows) + (rel * y_rows) ** 2)
+    if spline:
+        same = initial is not None and initial.response == SPLINE and initial.spline_knots_deg == \
+            base.spline_knots_deg
+        start = base if initial is None else replace(
+            base, tilt_u_deg=initial.tilt_u_deg, tilt_v_deg=initial.tilt_v_deg,
+            temp_coeff_per_c=initial.temp_coeff_per_c if fit_t else 0.0,
+            bias_temp_coeff_per_c=initial.bias_temp_coeff_per_c if fit_t else 0.0)
+        if same:
+            start = replace(start, scale=initial.scale, bias=initial.bias, spline=initial.spline)
+        else:
+            start, _ = _initial_spline(start, s_rows, t_rows, lit_r, y_rows, free, weights)
+            if adaptive:  # the spline's end from the readings (calibration.css.spline)
+                start, _ = _spline_end(start, s_rows, t_rows, lit_r, y_rows, free, weights)
+                base = replace(base, spline_knots_deg=start.spline_knots_deg, spline=start.spline)
+                free = _with_spline(free, start)
+    elif initial is not None and initial.response == response and (not fit_f or initial.fov_half_deg is not None):
         start = replace(initial, channel=channel, response=response,
                         fov_half_deg=initial.fov_half_deg if fit_f else fixed_fov)
         if not fit_t:
             start = replace(start, temp_coeff_per_c=0.0, bias_temp_coeff_per_c=0.0)
     else:
         fov_grid = tuple(np.arange(30.0, 90.25, 0.5)) + (None,) if fit_f else (fixed_fov,)
-        weights = 1.0 / np.sqrt(sigma0**2 + shot * np.abs(y_rows) + (rel * y_rows) ** 2)
         start = _initial(base, s_rows, t_rows, lit_r, y_rows, free, fov_grid, weights)
         if fit_f and start.fov_half_deg is None:
             start = replace(start, fov_half_deg=89.0)
@@ -874,8 +1104,19 @@ def fit_diode(channel: str, sun_vectors, signal, temperature_c, *, dark=None, gr
     if noise is None:
         params, _ = problem.solve(start, loss="soft_l1", f_scale=ROBUST_SCALE_SIGMAS)
         problem.sigma = sigmas(params, sigma0, shot, rel)
-        z = problem.residuals(problem.x0(params))
-        bad, score = _neighbour_outliers(z, s_rows, lit_r, np.arange(rows.size))
+        if adaptive:  # the spline's end again, at the robust fit's normal
+            moved, _ = _spline_end(params, s_rows, t_rows, lit_r, y_rows, free, 1.0 / problem.sigma,
+                                   near=params.spline_knots_deg[-1])
+            if moved.spline_knots_deg != params.spline_knots_deg:
+                base = replace(base, spline_knots_deg=moved.spline_knots_deg, spline=moved.spline)
+                free = _with_spline(free, moved)
+                problem = _Problem(base, free, s_rows, t_rows, lit_r, y_rows, sigmas(moved, sigma0, shot, rel))
+                params, _ = problem.solve(moved)  # plain: a glint stays the reading its repeats disagree with
+                problem.sigma = sigmas(params, sigma0, shot, rel)
+        z = problem.data_residuals(problem.x0(params))
+        bad, score = _neighbour_outliers(z, s_rows, lit_r, np.arange(rows.size), incidence=np.degrees(np.arccos(
+            np.clip(s_rows @ params.normal, -1.0, 1.0))) if spline else None, groups=groups[rows] if spline else None,
+            temperature=t_rows)
         if bad.any():
             if bad.mean() > SCREEN_MAX_SHARE:
                 warnings.append(f"{channel}: {int(bad.sum())} of {rows.size} readings stand out from their "
@@ -898,7 +1139,8 @@ def fit_diode(channel: str, sun_vectors, signal, temperature_c, *, dark=None, gr
         m = signal_partials(params, problem.s, problem.t, problem.lit)[0]
         return m, np.sqrt(sigma0**2 + shot * np.abs(m) + (rel * m) ** 2)
 
-    for it in range(NOISE_ITERATIONS if noise is None else 2):
+    # with a given noise model one pass is enough for the spline law, whose start (the full fit's) is linear-close
+    for it in range(NOISE_ITERATIONS if noise is None else 1 if spline else 2):
         m_fit, _ = signal_partials(params, problem.s, problem.t, problem.lit)
         if noise is None:  # the noise from the current fit's residuals (the weights change the fit, the fit them)
             resid_all = np.full(n, np.nan)
@@ -919,17 +1161,28 @@ def fit_diode(channel: str, sun_vectors, signal, temperature_c, *, dark=None, gr
             sigma0, shot, rel, model_sd = (float(v) for v in noise)
         m_fit, noise_now = noise_at(params)
         lit_now = lit_reading(params, problem.y, problem.t, problem.lit, noise_now)
+        if spline:
+            lit_now |= lit_reading(params, m_fit, problem.t, problem.lit, noise_now)
         if noise_source == "repeats" and it >= 1 and lit_now.sum() > len(free):
             model_sd = model_error((problem.y - m_fit)[lit_now], noise_now[lit_now], int(lit_now.sum()) - len(free))
         problem.sigma = np.sqrt(noise_now**2 + np.where(lit_now, model_sd**2, 0.0))
         params, _ = problem.solve(params)
         if "fov_half_deg" in free:
             params = _escape_fov(problem, params)
+        if adaptive and it == 1:  # the spline's end again, at the fitted normal, weighted by the noise and τ
+            moved, chi2_moved = _spline_end(params, problem.s, problem.t, problem.lit, problem.y, free,
+                                            1.0 / problem.sigma, near=params.spline_knots_deg[-1])
+            if moved.spline_knots_deg != params.spline_knots_deg and chi2_moved < float(np.sum(problem.residuals(
+                    problem.x0(params)) ** 2)) + 2.0 * len(params.spline) - 1.0:
+                base = replace(base, spline_knots_deg=moved.spline_knots_deg, spline=moved.spline)
+                free = _with_spline(free, moved)
+                problem = _Problem(base, free, problem.s, problem.t, problem.lit, problem.y, problem.sigma)
+                params, _ = problem.solve(moved)
     # bounds: fix what ended on one and fit again
     at_bound = []
     for name in list(free):
         lo, hi = _bounds(name, response)
-        v = getattr(params, name)
+        v = params.get(name)
         span = (hi - lo) if np.isfinite(hi - lo) else max(abs(v), 1.0)
         if name == "fov_half_deg" and v > FOV_NONE_ABOVE_DEG:
             at_bound.append(name)
@@ -958,6 +1211,13 @@ def fit_diode(channel: str, sun_vectors, signal, temperature_c, *, dark=None, gr
             statements.append(note)
         x = problem.x0(params)
         m_fit, noise = noise_at(params)
+    if spline:
+        end = params.spline_knots_deg[-1]
+        statements.append(f"the spline law's {len(params.spline)} coefficients fitted on knots "
+                          + _knot_words(params.spline_knots_deg) + ("" if end >= 90.0 else
+                                                                    f"; it ends at {end:g}°, beyond which the detector "
+                                                                    "is dark") + " (the spline holds the field-of-view "
+                          "cut-off: no θ_c)" + (", its end chosen by the readings' χ²" if adaptive else ""))
     if model_sd > 0:
         unit_word = "V" if detector == "ir" else "A"
         statements.append(f"the residual exceeds the repeat noise (χ²/dof = {chi2_dof:.1f}): a model error of "

@@ -179,6 +179,40 @@ def test_the_sweep_is_capped_and_methods_are_the_css_ones():
     with pytest.raises(ValueError, match="known for the css-sweep plan"):
         Campaign(name="x", plan="css-sweep", methods=("physical",))
     assert Campaign(name="x", plan="css-sweep", methods=("kelly",)).methods == ("kelly",)
+    assert Campaign(name="x", plan="css-sweep", methods=("kelly", "spline")).methods == ("kelly", "spline")
+
+
+def _outcome(response, held=None, check=None, parameters=8):
+    """A stand-in for a CSS calibration outcome: its law, Sun direction figures and fitted parameters."""
+    from types import SimpleNamespace
+
+    figure = lambda rms: None if rms is None else SimpleNamespace(rms_deg=rms, n_points=300)  # noqa: E731
+    fits = {c: SimpleNamespace(valid=True, free=("p",) * parameters) for c in CHANNELS}
+    return SimpleNamespace(response=response, sun_heldout=figure(held), sun_check=figure(check), fits=fits)
+
+
+def test_the_run_end_fits_kelly_and_spline_and_keeps_the_better_held_out(monkeypatch):
+    """DEFAULT_METHODS fits the Kelly law and the spline; rank_css_fits keeps the smaller held-out Sun error, a
+    near tie (within 5 %) going to the law with fewer parameters, the check directions' error standing in for a fit
+    without held-out figures, and fits with neither last, simplest first. The spline starts from the Kelly fit."""
+    from bench import css_datafile
+    from bench.families.css import DEFAULT_METHODS
+
+    assert DEFAULT_METHODS == ("kelly", "spline") == css_datafile.DEFAULT_CSS_LAWS
+    rank = lambda *o: [x.response for x in css_datafile.rank_css_fits(o)]  # noqa: E731
+    kelly, spline = _outcome("kelly", 3.2), _outcome("spline", 0.18, parameters=27)
+    assert rank(kelly, spline) == ["spline", "kelly"]
+    assert rank(_outcome("kelly", 0.200), _outcome("spline", 0.195, parameters=27)) == ["kelly", "spline"]
+    assert rank(_outcome("kelly", 0.200), _outcome("spline", 0.180, parameters=27)) == ["spline", "kelly"]
+    assert rank(_outcome("kelly", check=0.9), _outcome("spline", check=0.1, parameters=27)) == ["spline", "kelly"]
+    assert rank(_outcome("spline", parameters=27), _outcome("kelly")) == ["kelly", "spline"]
+    assert rank(_outcome("spline", parameters=27), _outcome("power", 1.0)) == ["power", "spline"]
+    calls = []
+    monkeypatch.setattr(css_datafile, "fit_css", lambda data, response, start=None: calls.append(
+        (response, start)) or _outcome(response))
+    outcomes = css_datafile.fit_css_laws(None, DEFAULT_METHODS)
+    assert [o.response for o in outcomes] == ["kelly", "spline"]
+    assert calls[0] == ("kelly", None) and calls[1][0] == "spline" and calls[1][1] is outcomes[0]
 
 
 # --- one reading ---------------------------------------------------------------------------------------------------

@@ -171,8 +171,9 @@ function curvesPlot(view) {
 
 // -- every detector's parameters --------------------------------------------------------------------------------
 function parametersTable(view) {
+  const spline = view.response === "spline";  // its shape is its coefficients: counted, listed in the tooltip
   const shape = view.response === "power" ? "power" : "kappa";
-  const shapeLabel = view.response === "power" ? "exponent p" : "Kelly κ";
+  const shapeLabel = spline ? "spline coefficients" : view.response === "power" ? "exponent p" : "Kelly κ";
   const heads = ["detector", "scale S", "offset b", "normal zenith / azimuth [°]", shapeLabel, "FOV cut-off θc [°]",
     "c_T [1/°C]", "b_T [unit/°C]", "fit RMS (readings)", "χ²/dof", "held-out RMS (in σ)", "status"];
   $("#css-parameters thead").replaceChildren(el("tr", {}, ...heads.map((h) => el("th", {}, h))));
@@ -191,7 +192,10 @@ function parametersTable(view) {
     const worse = held && d.at_nodes?.rms && held.rms > 3 * d.at_nodes.rms;
     return el("tr", {}, name, cell(p.scale), cell(p.bias, 3),
       el("td", {}, `${fmt(n.zenith_deg, 3)} / ${fmt(n.azimuth_deg, 3)} ± ${precise(n.sd_deg, 2)}`),
-      cell(p[shape], 4), cell(p.fov_half_deg, 4), cell(p.temp_coeff_per_c, 3), cell(p.bias_temp_coeff_per_c, 3),
+      spline ? el("td", { title: d.parameters.filter((q) => q.name.startsWith("spline_"))
+        .map((q) => `${q.name} ${pm(q.value, q.sd, 4)}`).join("\n") },
+      `${d.parameters.filter((q) => q.name.startsWith("spline_")).length}`) : cell(p[shape], 4),
+      cell(p.fov_half_deg, 4), cell(p.temp_coeff_per_c, 3), cell(p.bias_temp_coeff_per_c, 3),
       el("td", {}, `${precise(d.fit?.rms, 3)} (${d.fit?.n_points ?? "–"})`), el("td", {}, fmt(d.fit?.chi2_dof, 1)),
       el("td", worse ? { class: "over", title: "much larger held out than at the fitted directions" } : {},
         held ? `${precise(held.rms, 3)} (${fmt(held.rms_normalised, 1)} σ)` : "–"),
