@@ -32,10 +32,13 @@ from .datafile import (
     TRUE_COLUMNS,
     CsvTable,
     DataFileError,
+    flag_column,
     load_calibration_json,
     read_csv_table,
+    refuse_rows,
     require_columns,
     sensor_rows,
+    temperature_column,
 )
 
 #: 0/1 columns: shutter closed; check direction (never fitted, only scored).
@@ -45,8 +48,6 @@ FLAG_COLUMNS = ("dark", "check")
 MAX_CURRENT_A = 0.1
 #: Largest thermopile voltage [V]: a thermopile's are µV to mV behind its amplifier, so more is a file in mV.
 MAX_VOLTAGE_V = 1.0
-#: Temperatures a head may report [°C]; outside, the column is likely in kelvin or in ADC counts.
-TEMPERATURE_RANGE_C = (-100.0, 150.0)
 #: Largest file read [bytes].
 MAX_FILE_BYTES = 64 * 2**20
 #: A column that looks like a channel's: ``<face>_<type>`` with or without a unit suffix.
@@ -89,20 +90,6 @@ def _read_table(path) -> CsvTable:
     return read_csv_table(path)
 
 
-def _refuse(table: CsvTable, column_name: str, values: np.ndarray, bad: np.ndarray, message) -> None:
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise DataFileError(table.path, message(values[i]), row=i + 1, line=table.lines[i], column=column_name)
-
-
-def _flags(table: CsvTable, name: str) -> np.ndarray:
-    if not table.has(name):
-        return np.zeros(len(table.rows), bool)
-    values = table.numbers(name, integer=True)
-    _refuse(table, name, values, (values != 0) & (values != 1), lambda v: f"{v:g} is not 0 or 1")
-    return values == 1
-
-
 def channel_columns(table: CsvTable) -> list[str]:
     """The detector columns the file has, in the head's order; a column named like a channel but with the wrong
     unit (``px_ir_a``: a thermopile reads volts) or none (``px_uv``) is refused, naming the right name."""
@@ -139,11 +126,11 @@ def _signals(table: CsvTable, columns: list[str]) -> np.ndarray:
     for name in columns:
         values = table.numbers(name, allow_empty=anywhere)
         if name.endswith("_v"):
-            _refuse(table, name, values, np.abs(values) > MAX_VOLTAGE_V,
+            refuse_rows(table, name, values, np.abs(values) > MAX_VOLTAGE_V,
                     lambda v: f"{v:g} V is out of range for a thermopile (|voltage| ≤ {MAX_VOLTAGE_V:g} V); the "
                               "thermopiles' columns are in volts (mV × 1e-3)")
         else:
-            _refuse(table, name, values, np.abs(values) > MAX_CURRENT_A,
+            refuse_rows(table, name, values, np.abs(values) > MAX_CURRENT_A,
                     lambda v: f"{v:g} A is out of range for a photodiode (|current| ≤ {MAX_CURRENT_A:g} A); the "
                               "photodiodes' columns are in amperes (µA × 1e-6)")
         out.append(values)
@@ -156,14 +143,6 @@ def _signals(table: CsvTable, columns: list[str]) -> np.ndarray:
     return signals
 
 
-def _temperature(table: CsvTable) -> np.ndarray:
-    values = table.numbers("temperature_c")
-    lo, hi = TEMPERATURE_RANGE_C
-    _refuse(table, "temperature_c", values, (values < lo) | (values > hi),
-            lambda v: f"{v:g} °C is out of range ({lo:g}…{hi:g} °C); the temperature is in Celsius, not kelvin")
-    return values
-
-
 def _directions(table: CsvTable, dark: np.ndarray, *, optional: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Zenith and azimuth; empty on dark rows (or anywhere when `optional`): NaN. A lit row's zenith lies in
     [0, 180] (a cube is lit from every side)."""
@@ -171,9 +150,9 @@ def _directions(table: CsvTable, dark: np.ndarray, *, optional: bool = False) ->
     zenith = table.numbers("zenith_deg", allow_empty=empty_ok)
     azimuth = table.numbers("azimuth_deg", allow_empty=empty_ok)
     lit = ~dark & np.isfinite(zenith)
-    _refuse(table, "zenith_deg", zenith, lit & ((zenith < 0) | (zenith > 180)),
+    refuse_rows(table, "zenith_deg", zenith, lit & ((zenith < 0) | (zenith > 180)),
             lambda v: f"zenith {v:g}° must lie in [0, 180] (from the head's +z axis)")
-    _refuse(table, "azimuth_deg", azimuth, ~dark & np.isfinite(azimuth) & (np.abs(azimuth) > 720),
+    refuse_rows(table, "azimuth_deg", azimuth, ~dark & np.isfinite(azimuth) & (np.abs(azimuth) > 720),
             lambda v: f"azimuth {v:g}° is out of range (|azimuth| ≤ 720°)")
     half = ~dark & (np.isfinite(zenith) != np.isfinite(azimuth))
     if half.any():  # only where empty cells are allowed
@@ -204,11 +183,11 @@ def read_css_frames(path, *, sensor_id: str | None = None) -> CssFrames:
     if not table.rows:
         raise DataFileError(table.path, "no data rows")
     keep, sensor_id = sensor_rows(table, sensor_id)
-    dark, check = _flags(table, "dark"), _flags(table, "check")
-    _refuse(table, "check", check, dark & check, lambda v: "a row cannot be both dark and a check direction (a "
+    dark, check = flag_column(table, "dark"), flag_column(table, "check")
+    refuse_rows(table, "check", check, dark & check, lambda v: "a row cannot be both dark and a check direction (a "
                                                            "check direction is lit)")
     signals = _signals(table, columns)
-    temperature = _temperature(table)
+    temperature = temperature_column(table)
     zenith, azimuth = _directions(table, dark)
     repeat = table.numbers("repeat", integer=True) if table.has("repeat") else None
     row_id = np.arange(1, len(table.rows) + 1)
@@ -440,13 +419,13 @@ def read_css_readings(path) -> CssReadings:
     require_columns(table, ("temperature_c",))
     if not table.rows:
         raise DataFileError(table.path, "no data rows")
-    dark = _flags(table, "dark")
+    dark = flag_column(table, "dark")
     zenith = azimuth = None
     if all(table.has(c) for c in TRUE_COLUMNS):
         zenith, azimuth = _directions(table, dark, optional=True)
     ids = sorted(set(table.texts("sensor_id"))) if table.has("sensor_id") else []
     channels = tuple(CHANNELS[COLUMNS.index(c)] for c in columns)
-    return CssReadings(table, _signals(table, columns), channels, _temperature(table), dark, zenith, azimuth, ids)
+    return CssReadings(table, _signals(table, columns), channels, temperature_column(table), dark, zenith, azimuth, ids)
 
 
 #: Columns `apply` adds to a CSS readings CSV: the direction, its 1σ cone radius and the faces lit.

@@ -26,7 +26,14 @@ from pathlib import Path
 
 import numpy as np
 
-from drivers.sim.css_optics import CHANNELS, CssOptics, CssTruth, EarthScene
+from calibration.css.calibrate import calibrate_css, head_model_from_document
+from calibration.css.data import CssBenchData
+from calibration.css.estimate import AlbedoScene, albedo_signals, disc_quadrature, estimate_sun
+from calibration.css.head import sun_vectors
+from calibration.css.karel import karel_attitude
+from calibration.css.quantiser import TABLES, thresholds_from_response
+from calibration.css.sweep import sweep_directions
+from drivers.sim.css_optics import CHANNELS, CssChannels, CssOptics, CssTruth, EarthScene
 from drivers.sim.css_orbit import OrbitSamples
 
 from .field_plots import write_figure
@@ -55,7 +62,6 @@ class OrbitReadings:
     temperature_c : float
         The head's temperature.
     """
-
     signals: np.ndarray
     tps_seen_c: np.ndarray
     sun_body: np.ndarray
@@ -116,12 +122,6 @@ def bench_calibration(truth: CssTruth, *, step_deg: float = 5.0, around: int = 8
     """The head calibrated as a lab would (module docstring): each face swept through its field
     (:func:`calibration.css.sweep.sweep_directions`), `repeats` readings per direction through the head's own ADCs
     (:class:`~drivers.sim.css_optics.CssChannels`), every diode fitted; returns the calibration document."""
-    from calibration.css.calibrate import calibrate_css
-    from calibration.css.data import CssBenchData
-    from calibration.css.head import sun_vectors
-    from calibration.css.sweep import sweep_directions
-    from drivers.sim.css_optics import CssChannels
-
     optics = CssOptics(truth)
     adc = CssChannels()
     rng = np.random.default_rng(seed)
@@ -147,8 +147,6 @@ def _face_vectors(normal, incidence_deg) -> np.ndarray:
 def albedo_at_normal(model, earth_radius_deg: float, albedo: float) -> dict:
     """Each detector's signal from a uniformly lit Earth disc (radiance a·E/π) centred on its normal [A or V]:
     a·S·∫_cap R dΩ/π through its calibrated response — what the albedo-aware estimator is told."""
-    from calibration.css.estimate import disc_quadrature
-
     u, psi, w = disc_quadrature(earth_radius_deg)
     own = np.einsum("rk,r->k", model.responses_at(np.repeat(u[:, None], len(model), axis=1)), w) * psi.size
     return {c: float(albedo * s * o / np.pi) for c, s, o in zip(model.channels, model.scale, own)}
@@ -159,9 +157,6 @@ def calibrated_tables(model, *, earth_radius_deg: float, albedo: float) -> dict:
     tables from each type's calibrated response at 0 … 90° (the mean over the faces), the albedo tables from the
     calibrated response to the lit Earth disc at 0 … 90° off the normal; the TPS table stays the thesis' (no bench
     without an Earth simulator measures it)."""
-    from calibration.css.estimate import AlbedoScene, albedo_signals
-    from calibration.css.quantiser import TABLES, thresholds_from_response
-
     angles = np.arange(0.0, 90.0 + 1e-9, 1.0)
     level = albedo_at_normal(model, earth_radius_deg, albedo)
     tables = {"tps": TABLES["tps"].thresholds}
@@ -182,8 +177,6 @@ def calibrated_tables(model, *, earth_radius_deg: float, albedo: float) -> dict:
 # -- the comparison ---------------------------------------------------------------------------------------------
 def karel_vectors(readings: OrbitReadings, *, detector: str = "epd", tables=None) -> np.ndarray:
     """Seed 000's algorithm on every reading: the Sun's body vector from the EPD (``"epd"``) or BPW (``"bpw"``)."""
-    from calibration.css.karel import karel_attitude
-
     out = np.empty((len(readings.signals), 3))
     for i, (m, tps) in enumerate(zip(readings.signals, readings.tps_seen_c)):
         out[i] = karel_attitude(tps, m[UV], m[VIS], tables=tables).sun_vector(detector)
@@ -198,8 +191,6 @@ def earth_lit_share(earth_vectors, earth_radius_deg: float, sun_vectors) -> np.n
     The estimator's albedo is a uniformly lit disc (:class:`calibration.css.estimate.AlbedoScene`); this scales it to
     the Earth's phase seen from the satellite — 1 with the Sun behind the satellite, 0 with the Earth's night side
     below."""
-    from calibration.css.estimate import disc_quadrature
-
     e = np.atleast_2d(np.asarray(earth_vectors, float))
     e = e / np.linalg.norm(e, axis=1, keepdims=True)
     s = np.atleast_2d(np.asarray(sun_vectors, float))
@@ -227,8 +218,6 @@ def least_squares_vectors(readings: OrbitReadings, model, *, albedo_aware: bool,
     forty times stronger than the Sun's, and their offsets are the bench room's). Albedo-aware: told the Earth's
     direction and radius and the albedo, it estimates twice — the Sun without albedo, then with the albedo of the
     Earth's phase that Sun gives (:func:`earth_lit_share`)."""
-    from calibration.css.estimate import AlbedoScene, estimate_sun
-
     photodiodes = [c for c in model.channels if not c.endswith("_ir")]
     sub = model.subset(photodiodes)
     cols = [CHANNELS.index(c) for c in photodiodes]
@@ -239,8 +228,6 @@ def least_squares_vectors(readings: OrbitReadings, model, *, albedo_aware: bool,
     share = earth_lit_share(readings.earth_body, readings.earth_radius_deg, np.nan_to_num(first.vector))
     level = albedo_at_normal(sub, readings.earth_radius_deg, albedo)
     scene = AlbedoScene(readings.earth_body, readings.earth_radius_deg, level)
-    from calibration.css.estimate import albedo_signals
-
     predicted = albedo_signals(sub, scene) * share[:, None]
     return estimate_sun(sub, signals, readings.temperature_c, channels=photodiodes, albedo=predicted)
 
@@ -248,8 +235,6 @@ def least_squares_vectors(readings: OrbitReadings, model, *, albedo_aware: bool,
 def compare_attitude(truth: CssTruth, samples: OrbitSamples, *, document: dict | None = None, seed: int = 0) -> dict:
     """Every method's angular errors [°] (:func:`error_figures`) in scenes with the Earth's albedo and without, on
     the sunlit samples of `samples`; `document` is the head's bench calibration (made here when None)."""
-    from calibration.css.calibrate import head_model_from_document
-
     document = document if document is not None else bench_calibration(truth, seed=seed + 1)
     model = head_model_from_document(document)
     tables = calibrated_tables(model, earth_radius_deg=samples.earth_radius_deg, albedo=0.3)

@@ -175,6 +175,36 @@ def sensor_rows(table: CsvTable, sensor_id: str | None) -> tuple[np.ndarray, str
     return keep, sensor_id
 
 
+#: Temperatures a sensor may report [°C]; outside, the column is likely in kelvin or in ADC counts
+TEMPERATURE_RANGE_C = (-100.0, 150.0)
+
+
+def refuse_rows(table: CsvTable, column: str, values: np.ndarray, bad: np.ndarray, message) -> None:
+    """:class:`DataFileError` at the first row where `bad`, naming the row, its line and `column`; its text is
+    `message(value)` of that row's value."""
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise DataFileError(table.path, message(values[i]), row=i + 1, line=table.lines[i], column=column)
+
+
+def flag_column(table: CsvTable, column: str) -> np.ndarray:
+    """A 0/1 column as booleans (all False when the file has none); another value is refused."""
+    if not table.has(column):
+        return np.zeros(len(table.rows), bool)
+    values = table.numbers(column, integer=True)
+    refuse_rows(table, column, values, (values != 0) & (values != 1), lambda v: f"{v:g} is not 0 or 1")
+    return values == 1
+
+
+def temperature_column(table: CsvTable, column: str = "temperature_c") -> np.ndarray:
+    """A sensor's temperature [°C], refused outside :data:`TEMPERATURE_RANGE_C` (kelvin or counts)."""
+    values = table.numbers(column)
+    lo, hi = TEMPERATURE_RANGE_C
+    refuse_rows(table, column, values, (values < lo) | (values > hi),
+                lambda v: f"{v:g} °C is out of range ({lo:g}…{hi:g} °C); the temperature is in Celsius, not kelvin")
+    return values
+
+
 def read_bench_csv(path, *, bench: BenchGeometry | None = None, sensor_id: str | None = None) -> BenchData:
     """Read a bench data CSV (README, "Bench data CSV") into :class:`BenchData`.
 

@@ -31,11 +31,14 @@ from .datafile import (
     TRUE_COLUMNS,
     CsvTable,
     DataFileError,
+    flag_column,
     header_numbers,
     load_calibration_json,
     read_csv_table,
+    refuse_rows,
     require_columns,
     sensor_rows,
+    temperature_column,
 )
 
 #: Quadrant currents, column k−1 = quadrant k of seed 002 eq. 2.1 [A].
@@ -46,8 +49,6 @@ REQUIRED_COLUMNS = TRUE_COLUMNS + CURRENT_COLUMNS + ("temperature_c",)
 FLAG_COLUMNS = ("dark", "check")
 #: Largest current a quadrant may carry [A]: a photodiode's are µA to mA, so more is a file in other units.
 MAX_CURRENT_A = 0.01
-#: Temperatures a sensor may report [°C]; outside, the column is likely in kelvin or in ADC counts.
-TEMPERATURE_RANGE_C = (-100.0, 150.0)
 #: Largest file read [bytes]: a full ±40° grid at 1° with 3 repeats is about 5 MB.
 MAX_FILE_BYTES = 64 * 2**20
 #: ``# key: value`` header comments: the sensor's nominal design (:class:`calibration.qd.design.QdDesign`),
@@ -105,38 +106,15 @@ def _design(table: CsvTable) -> tuple[QdDesign, dict]:
         raise DataFileError(table.path, f"header comments: {exc}") from None
 
 
-def _refuse_out_of_range(table: CsvTable, column: str, values: np.ndarray, bad: np.ndarray, message) -> None:
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise DataFileError(table.path, message(values[i]), row=i + 1, line=table.lines[i], column=column)
-
-
-def _flags(table: CsvTable, column: str) -> np.ndarray:
-    if not table.has(column):
-        return np.zeros(len(table.rows), bool)
-    values = table.numbers(column, integer=True)
-    _refuse_out_of_range(table, column, values, (values != 0) & (values != 1),
-                         lambda v: f"{v:g} is not 0 or 1")
-    return values == 1
-
-
 def _currents(table: CsvTable) -> np.ndarray:
     columns = []
     for name in CURRENT_COLUMNS:
         values = table.numbers(name)
-        _refuse_out_of_range(table, name, values, np.abs(values) > MAX_CURRENT_A,
+        refuse_rows(table, name, values, np.abs(values) > MAX_CURRENT_A,
                              lambda v: f"{v:g} A is out of range for a photodiode (|current| ≤ {MAX_CURRENT_A:g} A); "
                                        "the currents are in amperes (µA × 1e-6)")
         columns.append(values)
     return np.stack(columns, axis=1)
-
-
-def _temperature(table: CsvTable) -> np.ndarray:
-    values = table.numbers("temperature_c")
-    lo, hi = TEMPERATURE_RANGE_C
-    _refuse_out_of_range(table, "temperature_c", values, (values < lo) | (values > hi),
-                         lambda v: f"{v:g} °C is out of range ({lo:g}…{hi:g} °C); the temperature is in Celsius")
-    return values
 
 
 def _directions(table: CsvTable, dark: np.ndarray, *, optional: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -146,7 +124,7 @@ def _directions(table: CsvTable, dark: np.ndarray, *, optional: bool = False) ->
     zenith = table.numbers("zenith_deg", allow_empty=empty_ok)
     azimuth = table.numbers("azimuth_deg", allow_empty=empty_ok)
     light = ~dark & np.isfinite(zenith)
-    _refuse_out_of_range(table, "zenith_deg", zenith, light & ((zenith < 0) | (zenith >= 90)),
+    refuse_rows(table, "zenith_deg", zenith, light & ((zenith < 0) | (zenith >= 90)),
                          lambda v: f"zenith {v:g}° on a light row must lie in [0, 90) (the sun in front of the "
                                    "sensor; mark shutter-closed rows dark = 1)")
     half = ~dark & (np.isfinite(zenith) != np.isfinite(azimuth))
@@ -184,12 +162,12 @@ def read_qd_frames(path, *, sensor_id: str | None = None) -> QdFrames:
     if not table.rows:
         raise DataFileError(table.path, "no data rows")
     keep, sensor_id = sensor_rows(table, sensor_id)
-    dark, check = _flags(table, "dark"), _flags(table, "check")
+    dark, check = flag_column(table, "dark"), flag_column(table, "check")
     both = dark & check
-    _refuse_out_of_range(table, "check", check, both, lambda v: "a row cannot be both dark and a check point "
+    refuse_rows(table, "check", check, both, lambda v: "a row cannot be both dark and a check point "
                                                                 "(a check point is lit)")
     currents = _currents(table)
-    temperature = _temperature(table)
+    temperature = temperature_column(table)
     zenith, azimuth = _directions(table, dark)
     repeat = table.numbers("repeat", integer=True) if table.has("repeat") else None
     row_id = np.arange(1, len(table.rows) + 1)
@@ -276,13 +254,13 @@ def read_qd_readings(path) -> QdReadings:
     require_columns(table, CURRENT_COLUMNS + ("temperature_c",))
     if not table.rows:
         raise DataFileError(table.path, "no data rows")
-    dark = _flags(table, "dark")
+    dark = flag_column(table, "dark")
     truth = all(table.has(c) for c in TRUE_COLUMNS)
     zenith = azimuth = None
     if truth:
         zenith, azimuth = _directions(table, dark, optional=True)
     ids = sorted(set(table.texts("sensor_id"))) if table.has("sensor_id") else []
-    return QdReadings(table, _currents(table), _temperature(table), dark, zenith, azimuth, ids)
+    return QdReadings(table, _currents(table), temperature_column(table), dark, zenith, azimuth, ids)
 
 
 #: Columns `apply` adds to a QD readings CSV.

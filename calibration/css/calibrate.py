@@ -68,6 +68,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import CalibrationFormatError, InsufficientDataError
+from ..plain import plain
 from .data import CssBenchData
 from .diode import (
     FOV_EDGE_WIDTH_DEG,
@@ -425,23 +426,6 @@ def _warnings(fits, valid, scores, at_nodes, heldout, check, data: CssBenchData)
 
 
 # --- the document -------------------------------------------------------------------------------------------------
-def _plain(value):
-    if isinstance(value, np.ndarray):
-        return [_plain(v) for v in value.tolist()]
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (np.floating, float)):
-        value = float(value)
-        return value if np.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.bool_):
-        return bool(value)
-    return value
-
-
 def _diode_entry(fit: DiodeFit) -> dict:
     unit = UNITS[split_channel(fit.channel)[1]]
     entry = {"valid": fit.valid, "fault": fit.fault, "unit": unit, "warnings": list(fit.warnings),
@@ -500,7 +484,7 @@ def css_document(fits, *, sensor_id: str | None = None, response: str = "kelly",
            "diodes": diodes, "heldout": heldout, "uncertainty_scale": uncertainty_scale(heldout),
            "warnings": [str(w) for w in warnings],
            "rejected": [r.to_dict() if isinstance(r, RejectedReading) else r for r in rejected]}
-    doc = _plain(doc)
+    doc = plain(doc)
     validate_css_document(doc)
     return doc
 

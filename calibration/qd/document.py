@@ -34,6 +34,7 @@ import numpy as np
 
 from ..errors import CalibrationFormatError
 from ..models.base import FORMAT
+from ..plain import plain
 from .angles import zenith_azimuth_from_projection
 from .dark import DarkModel, subtract_dark
 from .design import quadrant_layout
@@ -50,25 +51,8 @@ FAMILY = "qd"
 QD_METHODS = ("geometric", "polynomial", "physical")
 
 
-def _plain(value):
-    if isinstance(value, np.ndarray):
-        return [_plain(v) for v in value.tolist()]
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (np.floating, float)):
-        value = float(value)
-        return value if np.isfinite(value) else None
-    if isinstance(value, (np.integer,)):
-        return int(value)
-    if isinstance(value, np.bool_):
-        return bool(value)
-    return value
-
-
 def _entry(value, sd=None) -> dict:
-    return {"value": _plain(value), "sd": None if sd is None else _plain(sd)}
+    return {"value": plain(value), "sd": None if sd is None else plain(sd)}
 
 
 def geometric_parts(params: GeometricParameters, sd: dict | None, length_m: float, layout) -> tuple[dict, dict]:
@@ -83,9 +67,9 @@ def polynomial_parts(model: PolynomialModel, layout) -> tuple[dict, dict]:
     """The ``parameters`` and ``model`` of a polynomial document (seed 002 eq. 2.3)."""
     return ({"coef_alpha": _entry(model.coef_alpha, model.sd_alpha),
              "coef_beta": _entry(model.coef_beta, model.sd_beta)},
-            {"kind": model.kind, "degree": _plain(model.degree), "terms": [list(t) for t in model.terms],
+            {"kind": model.kind, "degree": plain(model.degree), "terms": [list(t) for t in model.terms],
              "center": list(model.center), "scale": list(model.scale),
-             "condition_number": _plain(model.condition_number),
+             "condition_number": plain(model.condition_number),
              "layout": quadrant_layout(layout).astype(int).tolist(),
              "input": "eq. 2.1 ratios u = 2 x_c / L, v = 2 y_c / L, normalised (u − center) / scale"})
 
@@ -120,11 +104,11 @@ def qd_document(method: str, parameters: dict, model: dict, *, dark, design=None
     if method not in QD_METHODS:
         raise ValueError(f"`method` must be one of {QD_METHODS}, got {method!r}")
     doc = {"format": FORMAT, "family": FAMILY, "version": QD_FORMAT_VERSION, "method": method,
-           "sensor_id": sensor_id, "design": None if design is None else _plain(design.to_dict()),
-           "dark": _plain(dark.to_dict()), "parameters": _plain(parameters), "model": _plain(model),
+           "sensor_id": sensor_id, "design": None if design is None else plain(design.to_dict()),
+           "dark": plain(dark.to_dict()), "parameters": plain(parameters), "model": plain(model),
            "correlation": None if correlation is None else {"names": list(correlation[0]),
-                                                             "matrix": _plain(np.asarray(correlation[1]))},
-           "metrics": _plain(metrics) if metrics is not None else None, "notes": [str(n) for n in notes]}
+                                                             "matrix": plain(np.asarray(correlation[1]))},
+           "metrics": plain(metrics) if metrics is not None else None, "notes": [str(n) for n in notes]}
     validate_document(doc)
     return doc
 

@@ -24,7 +24,7 @@ towards ambient) with this head's constants.
 
 Back door (lewis style, never reachable over the wire): :attr:`faults` (the :class:`~drivers.sim.device.
 WireFaults` of every simulator: no reply, garbled, truncated, disconnected), :attr:`corrupt_crc` (the next replies
-carry a wrong CRC), :attr:`channel_faults` (:class:`~drivers.sim.css_optics.ChannelFaults` by channel name; also
+carry a wrong CRC), :attr:`channel_faults` (:class:`~drivers.sim.device.ChannelFaults` by channel name; also
 :meth:`stick_channel` (the ADC repeats a code), :meth:`kill_channel` (the detector is open: the channel reads its
 offset and noise, no light), :meth:`saturate_channel` (the amplifier latched at its rail: full scale, the saturated
 bit set), :meth:`clear_faults`), :meth:`mount` (another head on the fixture) and the world's temperature (ambient).
@@ -42,8 +42,8 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from .. import css_protocol as wire
 from ..framed_protocol import FramedResponder
-from .css_optics import CHANNELS, TYPES, ChannelFaults, CssChannels, CssOptics, CssTruth, css_truth
-from .device import SimDevice
+from .css_optics import CHANNELS, TYPES, CssChannels, CssOptics, CssTruth, css_truth
+from .device import ChannelFaults, SimDevice
 from .qd_optics import TecModel
 from .temperature import TemperatureResponder
 from .world import SimWorld

@@ -40,10 +40,12 @@ ADC averages (16); the ADC's quantisation is the electronics' (:class:`CssChanne
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
+
+from .device import ChannelFaults
 
 FACES = ("px", "py", "mx", "my", "pz", "mz")
 TYPES = ("uv", "vis", "ir")
@@ -433,23 +435,6 @@ class CssOptics:
 
 
 # -- electronics ------------------------------------------------------------------------------------------------
-@dataclass
-class ChannelFaults:
-    """Faults of the head's channels (back door), keyed by channel name.
-
-    stuck: the channel's ADC repeats this code; dead: the detector is open (the channel reads its front end's offset
-    and noise only); saturated: the amplifier is latched at its rail (full scale)."""
-
-    stuck: dict[str, int] = field(default_factory=dict)
-    dead: set[str] = field(default_factory=set)
-    saturated: set[str] = field(default_factory=set)
-
-    def clear(self) -> None:
-        self.stuck.clear()
-        self.dead.clear()
-        self.saturated.clear()
-
-
 @dataclass(frozen=True)
 class CssChannels:
     """The 18 channels' ADCs: `bits`, unipolar ranges from zero (photodiodes) or bipolar around mid-scale
@@ -487,8 +472,3 @@ class CssChannels:
             for name, value in faults.stuck.items():
                 codes[..., CHANNELS.index(name)] = int(np.clip(value, 0, self.full_scale_counts))
         return codes
-
-
-def with_response(truth: CssTruth, law: str) -> CssTruth:
-    """The same head with every detector following `law`."""
-    return replace(truth, diodes=tuple(replace(d, response=law) for d in truth.diodes))

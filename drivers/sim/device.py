@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 
 @dataclass
@@ -98,3 +98,28 @@ class LineDevice(SimDevice):
 
     def handle_line(self, line: bytes) -> bytes:  # pragma: no cover - abstract
         raise NotImplementedError
+
+
+@dataclass
+class ChannelFaults:
+    """Faults of a sensor module's channels, through the back door, keyed by the module's own channel names (the QD
+    module's quadrant numbers 1 … 4, the CSS head's ``px_uv`` …).
+
+    Attributes
+    ----------
+    stuck : dict
+        The channel's ADC repeats this code whatever the light.
+    dead : set
+        The detector is open: the channel reads its pedestal (or front end's offset) and noise only.
+    saturated : set
+        The amplifier is latched at its rail: the channel reads full scale.
+    """
+
+    stuck: dict = field(default_factory=dict)
+    dead: set = field(default_factory=set)
+    saturated: set = field(default_factory=set)
+
+    def clear(self) -> None:
+        self.stuck.clear()
+        self.dead.clear()
+        self.saturated.clear()

@@ -113,9 +113,11 @@ from __future__ import annotations
 import dataclasses
 import math
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
+
+from .device import ChannelFaults
 
 Q_E = 1.602176634e-19  # elementary charge [C]
 SUN_SAMPLES = 24  # directions over the Sun's disc
@@ -547,30 +549,6 @@ class QdOptics:
 
 
 # -- electronics ----------------------------------------------------------------------------------------------
-@dataclass
-class ChannelFaults:
-    """Faults of the module's four channels, through the back door; keys are quadrant numbers 1 … 4.
-
-    Attributes
-    ----------
-    stuck : dict of int to int
-        The channel's ADC repeats this code whatever the light.
-    dead : set of int
-        The photodiode is open: the channel reads its pedestal and amplifier noise only.
-    saturated : set of int
-        The amplifier is latched at its rail: the channel reads full scale.
-    """
-
-    stuck: dict[int, int] = field(default_factory=dict)
-    dead: set[int] = field(default_factory=set)
-    saturated: set[int] = field(default_factory=set)
-
-    def clear(self) -> None:
-        self.stuck.clear()
-        self.dead.clear()
-        self.saturated.clear()
-
-
 class QdChannels:
     """The four channels' amplifiers and ADCs of one build (module docstring, "Electronics, dark current,
     temperature"), their constants taken once."""

@@ -23,8 +23,8 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from .. import qd_protocol as wire
 from ..framed_protocol import FramedResponder
-from .device import SimDevice
-from .qd_optics import ChannelFaults, QdChannels, QdOptics, QdTruth, TecModel
+from .device import ChannelFaults, SimDevice
+from .qd_optics import QdChannels, QdOptics, QdTruth, TecModel
 from .temperature import TemperatureResponder
 from .world import SimWorld
 
