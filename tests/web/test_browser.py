@@ -917,6 +917,11 @@ def test_a_qd_campaign_from_the_launcher_to_its_results_view(browser, tmp_path):
             expect(page.locator("#currents-section")).to_be_visible()
             expect(page.locator("#spot-section")).to_be_hidden()
             expect(page.locator("#frame-part")).to_be_hidden()
+            # the page draws on an animation frame after its catch-up's fetches: wait for the plot, then read it
+            page.wait_for_function("""([id, n]) => {
+                const data = document.getElementById(id).data || [];
+                return data.length === 5 && data.every(t => (t.x || []).length === n); }""",
+                                   arg=["currents-plot", run["n_points_recorded"]], timeout=TIMEOUT_MS)
             traces = _plot_traces(page, "currents-plot")
             assert [t["name"] for t in traces] == ["Q1", "Q2", "Q3", "Q4", "sum"]
             assert all(t["n"] == run["n_points_recorded"] for t in traces)
