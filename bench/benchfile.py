@@ -37,6 +37,12 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from calibration.design import DEFAULT_BENCH, DEFAULT_SENSOR, BenchGeometry, SensorDesign
+from drivers.earth_simulator import (
+    DEFAULT_DISC_K,
+    DEFAULT_RADIUS_LIMITS_DEG,
+    DEFAULT_STANDBY_K,
+    DEFAULT_TEMPERATURE_LIMITS_K,
+)
 from drivers.sim.bench import SimBenchConfig
 from drivers.sim.lamp import LED
 from drivers.sources import ARC_WARMUP_S, LED_WARMUP_S
@@ -47,8 +53,8 @@ from .yamlfile import read_yaml
 #: The literal URL that names the simulated device (the same as omitting the URL).
 SIM_URL = "sim"
 TABLE_KINDS = ("apt", "smc100", "lx200", "manual")
-SOURCE_KINDS = ("xenon", "led")
-SENSOR_KINDS = ("cmos", "qd", "camera", "css")
+SOURCE_KINDS = ("xenon", "led", "earth")
+SENSOR_KINDS = ("cmos", "qd", "camera", "css", "horizon")
 #: The sensor kinds a simulated bench can simulate (its ``simulation.family``): every kind (the camera in-process,
 #: drivers/sim/camera.py).
 SIMULATED_SENSOR_KINDS = SENSOR_KINDS
@@ -253,7 +259,36 @@ class LedSourceConfig(_Strict):
         return self
 
 
-SourceConfig = Annotated[Union[XenonSourceConfig, LedSourceConfig], Field(discriminator="kind")]
+class EarthSourceConfig(_Strict):
+    """The IR Earth simulator (a heated disc behind an iris, a cold cover before it; SCPI-style line protocol,
+    drivers.earth_simulator), the horizon sensor's source. The heater is its lamp, the cover its shutter."""
+
+    kind: Literal["earth"] = "earth"
+    url: Url = None
+    radius_limits_deg: LimitsDeg = DEFAULT_RADIUS_LIMITS_DEG  # the iris's soft limits (disc angular radius) [°]
+    temperature_limits_k: Range = DEFAULT_TEMPERATURE_LIMITS_K  # heater setpoints the bench allows [K]
+    disc_temperature_k: float = Field(DEFAULT_DISC_K, gt=0)  # the disc's setpoint with the heater on [K]
+    standby_temperature_k: float = Field(DEFAULT_STANDBY_K, gt=0)  # the heater's setpoint in standby [K]
+    timeout_s: float = Field(1.0, gt=0)
+
+    @model_validator(mode="after")
+    def _within_limits(self):
+        problems = []
+        low, high = self.radius_limits_deg
+        if not (0.0 < low and high < 90.0):
+            problems.append((("radius_limits_deg",), f"a disc's angular radius lies within (0, 90)°, got "
+                                                     f"[{low}, {high}]"))
+        low, high = self.temperature_limits_k
+        for name in ("disc_temperature_k", "standby_temperature_k"):
+            value = getattr(self, name)
+            if not low <= value <= high:
+                problems.append(((name,), f"{value} K is outside temperature_limits_k [{low}, {high}] K"))
+        if problems:
+            raise _FieldProblems(problems)
+        return self
+
+
+SourceConfig = Annotated[Union[XenonSourceConfig, LedSourceConfig, EarthSourceConfig], Field(discriminator="kind")]
 
 
 # -- sensor ---------------------------------------------------------------------------------------------
@@ -323,8 +358,17 @@ class CssSensorConfig(_Strict):
     timeout_s: float = Field(1.0, gt=0)
 
 
-SensorConfig = Annotated[Union[CmosSensorConfig, CameraSensorConfig, QdSensorConfig, CssSensorConfig],
-                         Field(discriminator="kind")]
+class HorizonSensorConfig(_Strict):
+    """The scanning Earth-horizon sensor of seed 004 (dual-cone scanner: crossing times per revolution; framed binary
+    protocol, drivers.horizon_protocol). It faces an Earth simulator (``devices.source.kind: earth``)."""
+
+    kind: Literal["horizon"] = "horizon"
+    url: Url = None
+    timeout_s: float = Field(1.0, gt=0)
+
+
+SensorConfig = Annotated[Union[CmosSensorConfig, CameraSensorConfig, QdSensorConfig, CssSensorConfig,
+                               HorizonSensorConfig], Field(discriminator="kind")]
 
 
 class DevicesConfig(_Strict):
@@ -341,7 +385,12 @@ class DevicesConfig(_Strict):
         if not isinstance(data, dict):
             return data
         data = dict(data)
-        for role, kind in (("table", "apt"), ("source", "xenon"), ("sensor", "cmos")):
+        sensor = data.get("sensor")
+        # a horizon sensor's source is the Earth simulator unless the file says otherwise
+        source_kind = "earth" if isinstance(sensor, dict) and sensor.get("kind") == "horizon" else "xenon"
+        if source_kind == "earth" and data.get("source") is None:
+            data["source"] = {}
+        for role, kind in (("table", "apt"), ("source", source_kind), ("sensor", "cmos")):
             raw = data.get(role)
             if raw is None and role in data:
                 data[role] = {"kind": kind}  # a bare `table:` in YAML is an empty section
@@ -431,6 +480,14 @@ class BenchFile(_Strict):
         sim, devices = _section(data, "simulation"), _section(data, "devices")
         if not (isinstance(sim, dict) and isinstance(devices, dict)):
             return data  # the validation proper names the bad section
+        sensor = devices.get("sensor")
+        source = devices.get("source")
+        if "source" not in sim and not (isinstance(source, dict) and "kind" in source) and (
+                sim.get("family") == "horizon" or isinstance(sensor, dict) and sensor.get("kind") == "horizon"):
+            sim["source"] = "earth"  # a horizon bench's source is the Earth simulator unless the file says otherwise
+        if "family" not in sim and not (isinstance(sensor, dict) and "kind" in sensor) and (
+                sim.get("source") == "earth" or isinstance(source, dict) and source.get("kind") == "earth"):
+            sim["family"] = "horizon"  # and an Earth simulator's sensor is the horizon sensor
         # each simulated kind follows the device's, and the other way round (the sensor's: the simulated family)
         for role, sim_key, kinds in (("table", "table", TABLE_KINDS[:3]), ("source", "source", SOURCE_KINDS),
                                      ("sensor", "family", SIMULATED_SENSOR_KINDS)):
@@ -459,6 +516,10 @@ class BenchFile(_Strict):
     def _check_consistency(self):
         problems: list[tuple[tuple[str, ...], str]] = []
         table, source = self.devices.table, self.devices.source
+        if (self.devices.sensor.kind == "horizon") != (source.kind == "earth"):
+            problems.append((("devices", "source", "kind"),
+                             f"{source.kind!r} with a {self.devices.sensor.kind!r} sensor: the horizon sensor faces an "
+                             "Earth simulator (sensor kind horizon with source kind earth), and only it does"))
         if self.simulation is not None:
             if table.kind == "manual":
                 problems.append((("devices", "table", "kind"),
@@ -501,7 +562,7 @@ class BenchFile(_Strict):
                     (("devices", "source", "shutter_url"), source.shutter_url)]
         else:
             out.append((("devices", "source", "url"), source.url))
-        if self.devices.sensor.kind in ("cmos", "qd", "css"):
+        if self.devices.sensor.kind in ("cmos", "qd", "css", "horizon"):
             out.append((("devices", "sensor", "url"), self.devices.sensor.url))
         else:
             out.append((("devices", "sensor", "source"), self.devices.sensor.source))

@@ -9,6 +9,7 @@ from __future__ import annotations
 from types import UnionType
 from typing import Literal, Union, get_args, get_origin
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from calibration.css.diode import RESPONSES as CSS_METHODS  # the CSS family's fits: the detectors' response law
@@ -302,6 +303,95 @@ class CssSweepProcedure(_Strict):
                 + (temperatures - 1) * reduced + temperatures)
 
 
+#: The horizon family's fit (one: the crossing model of calibration.horizon.bench_fit)
+HORIZON_METHODS = ("crossings",)
+#: The sensor's measurement range (seed 004 Table 1-1): roll ±33°, pitch ±17°
+HORIZON_ROLL_RANGE_DEG = 33.0
+HORIZON_PITCH_RANGE_DEG = 17.0
+
+
+class HorizonGridProcedure(_Strict):
+    """A scanning horizon sensor's bench calibration in front of an IR Earth simulator (seed 004): the disc heated and
+    settled, the cover opened, then for each disc radius (`disc_radii_deg`, or by default the Earth's angular radius at
+    each of `altitudes_km`, seed 004 eq. 2.3) the iris set and a grid of roll × pitch over ±`roll_range_deg` ×
+    ±`pitch_range_deg` every `roll_step_deg` × `pitch_step_deg` (the sensor's range, seed 004 Table 1-1: roll ±33°,
+    pitch ±17°), each (roll, pitch) set through the table's kinematics as the disc centre's body direction, `repeats`
+    scans each; and `check_points` poses per radius spread over the range (Halton), never fitted. The cover is closed
+    at the end."""
+
+    altitudes_km: tuple[float, ...] = Field((400.0, 500.0, 700.0), min_length=1, max_length=20)
+    disc_radii_deg: tuple[float, ...] | None = Field(None, min_length=1, max_length=20)
+    roll_range_deg: float = Field(HORIZON_ROLL_RANGE_DEG, ge=0, le=60)
+    pitch_range_deg: float = Field(HORIZON_PITCH_RANGE_DEG, ge=0, le=45)
+    roll_step_deg: float = Field(11.0, gt=0, le=60)
+    pitch_step_deg: float = Field(8.5, gt=0, le=45)
+    repeats: int = Field(4, ge=1, le=100)
+    check_points: int = Field(4, ge=0, le=100)
+    tolerance_deg: float = Field(0.02, gt=0, le=1)
+
+    @field_validator("altitudes_km")
+    @classmethod
+    def _altitudes(cls, v):
+        if any(not 100.0 <= h <= 40000.0 for h in v):
+            raise ValueError("an altitude lies within 100…40000 km")
+        if len(set(v)) != len(v):
+            raise ValueError("an altitude is listed twice")
+        return v
+
+    @field_validator("disc_radii_deg")
+    @classmethod
+    def _radii(cls, v):
+        if v is not None:
+            if any(not 1.0 <= r <= 80.0 for r in v):
+                raise ValueError("a disc radius lies within 1…80°")
+            if len(set(v)) != len(v):
+                raise ValueError("a disc radius is listed twice")
+        return v
+
+    @model_validator(mode="after")
+    def _grid_within_the_cones(self):
+        for name, span, step in (("roll", self.roll_range_deg, self.roll_step_deg),
+                                 ("pitch", self.pitch_range_deg, self.pitch_step_deg)):
+            if abs(2 * span / step - round(2 * span / step)) > 1e-9:
+                raise ValueError(f"the {name} step must divide the {name} span, so the grid reaches ±{span:g}° "
+                                 f"exactly: {2 * span:g}° / {step:g}° is not whole")
+        from calibration.horizon.scan import crossing_phases
+
+        rolls, pitches = self.rolls_deg(), self.pitches_deg()
+        roll, pitch = (a.ravel() for a in np.meshgrid(rolls, pitches))
+        for radius in self.radii_deg():
+            for cone in (1, 2):
+                out, _ = crossing_phases(roll, pitch, radius, cone=cone)
+                missed = np.isnan(out)
+                if missed.any():
+                    i = int(np.flatnonzero(missed)[0])
+                    raise ValueError(f"at roll {roll[i]:g}°, pitch {pitch[i]:g}° cone {cone} of the design sensor "
+                                     f"(γ = 70°) does not cross a disc of radius {radius:.3f}°: narrow the grid or "
+                                     "change the disc radius")
+        return self
+
+    def radii_deg(self) -> tuple[float, ...]:
+        """The disc radii the plan sets [°]: `disc_radii_deg`, else the Earth's angular radius at each altitude (seed
+        004 eq. 2.3, H_eq = 0), rounded to 1e-4°."""
+        if self.disc_radii_deg is not None:
+            return tuple(float(r) for r in self.disc_radii_deg)
+        from calibration.horizon.scan import earth_angular_radius_deg
+
+        return tuple(round(float(earth_angular_radius_deg(h)), 4) for h in self.altitudes_km)
+
+    def rolls_deg(self):
+        n = int(round(2 * self.roll_range_deg / self.roll_step_deg)) + 1
+        return np.linspace(-self.roll_range_deg, self.roll_range_deg, n)
+
+    def pitches_deg(self):
+        n = int(round(2 * self.pitch_range_deg / self.pitch_step_deg)) + 1
+        return np.linspace(-self.pitch_range_deg, self.pitch_range_deg, n)
+
+    def points(self) -> int:
+        """The grid and the check points at every radius."""
+        return len(self.radii_deg()) * (len(self.rolls_deg()) * len(self.pitches_deg()) + self.check_points)
+
+
 class Alignment(_Strict):
     """Caliper readings of the bench alignment (seed 003 §4.1), checked before anything moves.
 
@@ -321,7 +411,7 @@ class Campaign(_Strict):
 
     name: str = Field(min_length=1)
     plan: Literal["seed003", "grid", "physical", "qd-grid", "qd-physical", "qd-dark", "camera-grid",
-                  "css-sweep"] = "seed003"
+                  "css-sweep", "horizon-grid"] = "seed003"
     operator: str = "unknown"
     sensors: tuple[str, ...] = Field(("SIM-0001",), min_length=1, max_length=MAX_SENSORS)
     frames: Literal["roi", "full", "none"] = "roi"
@@ -333,6 +423,7 @@ class Campaign(_Strict):
     qd_dark: QdDarkSweep = QdDarkSweep()
     camera_grid: CameraGridProcedure = CameraGridProcedure()
     css_sweep: CssSweepProcedure = CssSweepProcedure()
+    horizon_grid: HorizonGridProcedure = HorizonGridProcedure()
     alignment: Alignment | None = None
     # the fits at the run's end; None: every method of the sensor family (a CSS head: the kelly law and the spline,
     # bench.families.css.DEFAULT_METHODS, each law being a full fit with its held-out folds)
@@ -344,7 +435,8 @@ class Campaign(_Strict):
         if v is not None:
             plan = info.data.get("plan", "seed003")
             known = (QD_METHODS if plan.startswith("qd-") else CAMERA_METHODS if plan.startswith("camera-")
-                     else CSS_METHODS if plan.startswith("css-") else tuple(METHODS))
+                     else CSS_METHODS if plan.startswith("css-") else HORIZON_METHODS if plan.startswith("horizon-")
+                     else tuple(METHODS))
             unknown = [m for m in v if m not in known]
             if unknown:
                 raise ValueError(f"unknown method(s) {unknown}; known for the {plan} plan: {list(known)}")
@@ -382,6 +474,8 @@ class Campaign(_Strict):
             return self.camera_grid.points()
         if self.plan == "css-sweep":
             return self.css_sweep.points()
+        if self.plan == "horizon-grid":
+            return self.horizon_grid.points()
         return self.physical.max_points
 
 

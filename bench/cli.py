@@ -47,6 +47,7 @@ from .datafile import (
     write_bench_csv,
     write_calibration,
 )
+from .horizon_datafile import horizon_header_from_document, is_horizon_document, read_horizon_calibration
 from .qd_datafile import (
     QdFrames,
     angular_errors_deg,
@@ -558,6 +559,98 @@ def fit_css_command(
         out.print(f"figures written to {escape(str(json_out))}")
 
 
+def horizon_parameters_table(document: dict) -> Table:
+    """A horizon calibration's parameters ± 1σ beside the design's (seed 004 §3-5: γ = 70°), the mount's pitch marked
+    as folded into the phase offsets."""
+    table = Table(title="Horizon sensor: S_k(δ − o_k)·n_b = cos(ρ + Δρ), n_b = Mᵀ n_table; each fitted parameter ± 1σ",
+                  title_justify="left")
+    for name in ("parameter", "value [°]", "± 1σ [°]", "nominal [°]"):
+        table.add_column(name, justify="left" if name == "parameter" else "right")
+    for name, entry in document["parameters"].items():
+        sd = entry.get("sd")
+        note = "" if entry.get("fitted") else " (not fitted)" if name != "mount_pitch_deg" else \
+            " (folded into the offsets)"
+        table.add_row(name + note, f"{entry['value']:.5f}", "—" if sd is None else f"{sd:.5f}",
+                      f"{entry['nominal']:g}")
+    return table
+
+
+def horizon_accuracy_table(heldout: dict | None) -> Table:
+    """Roll and pitch the calibrated sensor reports against the table's [°]: at the check points (never fitted), with
+    each disc radius left out (refitted without it) and at the fitted scans; the nominal sensor beside them."""
+    table = Table(title="Roll and pitch against the table [°] (the sensor's crossings solved with the calibration)",
+                  title_justify="left")
+    for name in ("scored", "scans", "roll RMS", "roll max", "pitch RMS", "pitch max", "phase RMS / σ"):
+        table.add_column(name, justify="left" if name == "scored" else "right")
+    heldout = heldout or {}
+
+    def row(label, entry, scores=None):
+        if not entry or not entry.get("n_scans"):
+            table.add_row(label, *["—"] * 6)
+            return
+        sigma = (scores or {}).get("phase_rms_sigma")
+        table.add_row(label, str(entry["n_scans"]), f"{entry['roll_rms_deg']:.4f}", f"{entry['roll_max_deg']:.4f}",
+                      f"{entry['pitch_rms_deg']:.4f}", f"{entry['pitch_max_deg']:.4f}",
+                      "—" if sigma is None else f"{sigma:.2f}")
+
+    check = heldout.get("check")
+    row("check points *", (check or {}).get("calibrated"), check)
+    row("check points, nominal sensor", (check or {}).get("nominal"))
+    for entry in heldout.get("radius_out", []):
+        row(f"ρ {entry['disc_radius_deg']:.3f}° left out", entry.get("calibrated"), entry)
+    nodes = heldout.get("at_nodes")
+    row("fitted scans", (nodes or {}).get("calibrated"), nodes)
+    row("fitted scans, nominal sensor", (nodes or {}).get("nominal"))
+    table.caption = "* = the calibration's held-out figure (check points never fitted)"
+    table.caption_justify = "left"
+    return table
+
+
+@fit_app.command("horizon")
+@user_errors
+def fit_horizon_command(
+    data_csv: Path = typer.Argument(..., help="Horizon bench data CSV (see the README)."),
+    output: Optional[Path] = typer.Option(None, "--output", "-o", help="Write the calibration JSON here."),
+    header: Optional[Path] = typer.Option(None, "--header", help="Also write a C header for the sensor's MCU."),
+    sensor: Optional[str] = typer.Option(None, "--sensor", "--sensor-id",
+                                         help="Fit this sensor_id of a multi-sensor file."),
+) -> None:
+    """Fit a scanning horizon sensor's own errors (seed 004): each cone's half-angle and phase offset, the threshold
+    bias of the disc radius and the mount's roll and yaw on the table, ± 1σ, with roll and pitch scored at the check
+    points and with each disc radius left out."""
+    from .horizon_datafile import fit_horizon, horizon_calibration_file, read_horizon_frames
+
+    frames = read_horizon_frames(data_csv, sensor_id=sensor)
+    data = frames.data
+    try:
+        with err.status("fitting the crossing model and leaving disc radii out…"):
+            fit = fit_horizon(data)
+    except CalibrationError as exc:
+        raise DataFileError(data_csv, str(exc), column=getattr(exc, "column", None)) from None
+    document = horizon_calibration_file(fit, source=str(data_csv), software=f"sunbench {_version()}")
+    out.print(horizon_parameters_table(document))
+    out.print(f"χ²/dof {fit.chi2_dof:.2f} against the repeat scatter ({fit.noise.source}); condition number "
+              f"{fit.condition_number:.3g}; phase residual RMS {fit.rms_deg:.4f}° over {fit.n_edges} edges",
+              highlight=False)
+    out.print(horizon_accuracy_table(fit.heldout))
+    if fit.rejected:
+        out.print(f"[bold]{len(fit.rejected)} rejected edge(s)[/] (left out of the fit):", highlight=False)
+        for r in fit.rejected:
+            out.print(f"  {frames.where(r.row_id)}: {escape(r.describe())}", highlight=False, soft_wrap=True)
+    for w in fit.warnings:
+        out.print(f"[bold yellow]warning:[/] {escape(w)}", highlight=False, soft_wrap=True)
+    out.print(f"{fit.n_scans} scans ({len(data)} rows, {int(data.check.sum())} check rows) at disc radii "
+              f"{', '.join(f'{r:.3f}°' for r in fit.radii_deg)} from {escape(str(data_csv))}"
+              + (f" (sensor {escape(data.sensor_id)})" if data.sensor_id else ""), highlight=False)
+    text = horizon_header_from_document(document) if header else None
+    if output:
+        write_calibration(output, document)
+        out.print(f"calibration written to {escape(str(output))}")
+    if header:
+        _write_text(header, text)
+        out.print(f"C header written to {escape(str(header))}")
+
+
 def _write_text(path: Path, text: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
@@ -582,6 +675,9 @@ def apply_calibration(
         return
     if is_css_document(document):
         _apply_css(calibration_json, spots_csv, output)
+        return
+    if is_horizon_document(document):
+        _apply_horizon(calibration_json, spots_csv, output)
         return
     if is_camera_document(document):
         _apply_camera(calibration_json, spots_csv, output)
@@ -663,6 +759,26 @@ def _apply_css(calibration_json: Path, readings_csv: Path, output: Path) -> None
                   f"{escape(', '.join(readings.sensor_ids))}", highlight=False)
 
 
+def _apply_horizon(calibration_json: Path, readings_csv: Path, output: Path) -> None:
+    """`apply` with a horizon calibration: each scan's roll and pitch in the sensor's own frame from its crossings
+    (seed 004 eq. 2.7 with the calibrated γ_k, o_k and Δρ) and, where the file gives the table's angles, the error
+    against them through the calibrated mount."""
+    from .horizon_datafile import apply_horizon, read_horizon_frames, write_horizon_applied_csv
+
+    document = read_horizon_calibration(calibration_json)
+    frames = read_horizon_frames(readings_csv)
+    roll, pitch, error = apply_horizon(document, frames)
+    write_horizon_applied_csv(output, readings_csv, roll, pitch, error)
+    solved = np.isfinite(roll)
+    out.print(f"{int(np.unique(frames.data.scan[solved]).size)} scans' roll and pitch written to {escape(str(output))}"
+              + (f"; {int(np.unique(frames.data.scan[~solved]).size)} scan(s) without a solution (fewer than two "
+                 "edges)" if (~solved).any() else ""), highlight=False)
+    e = error[np.isfinite(error[:, 0])]
+    if e.size:
+        out.print(f"against the table: roll RMS {np.sqrt(np.mean(e[:, 0] ** 2)):.4f}°, pitch RMS "
+                  f"{np.sqrt(np.mean(e[:, 1] ** 2)):.4f}°", highlight=False)
+
+
 @commands.command("header")
 @user_errors
 def export_header(
@@ -676,6 +792,8 @@ def export_header(
         text = qd_header_from_document(read_qd_calibration(calibration_json))
     elif is_css_document(document):
         text = css_header_from_document(read_css_calibration(calibration_json))
+    elif is_horizon_document(document):
+        text = horizon_header_from_document(read_horizon_calibration(calibration_json))
     elif is_camera_document(document):
         text = camera_header_from_document(read_camera_calibration(calibration_json)[1])
     else:
@@ -729,6 +847,9 @@ CLIENT_HINTS: dict[str, tuple[tuple[str, str], ...]] = {
     "lamp": (("lantz-drivers", "Newport69907 on the serial port {pty}"),),
     "shutter": (("InstrumentKit", 'ik.thorlabs.SC10.open_tcpip("{host}", {port}), prompt "> "'),),
     "led": (("PyVISA", 'TCPIP0::{host}::{port}::SOCKET, read and write termination "\\n"'),),
+    "earth": (("PyVISA", 'TCPIP0::{host}::{port}::SOCKET, read and write termination "\\n" (SCPI-style: *IDN?, '
+                         'IRIS 66.5, HEAT ON, COV OPEN, STAT?)'),
+              ("sunbench", 'EarthSimulatorSource(open_port("{url}"))'),),
     "sensor": (("sunbench", 'CmosSunSensor(open_port("{url}"))'),),
 }
 
@@ -765,7 +886,7 @@ def serve_simulators(
                                                                      "examples/bench-sim.yaml."),
     table: Optional[str] = typer.Option(None, "--table", metavar="apt|smc100|lx200",
                                         help="The simulated table (overrides the bench file's)."),
-    source: Optional[str] = typer.Option(None, "--source", metavar="xenon|led",
+    source: Optional[str] = typer.Option(None, "--source", metavar="xenon|led|earth",
                                          help="The simulated sun simulator (overrides the bench file's)."),
     axis_order: Optional[str] = typer.Option(None, "--axis-order", metavar="azimuth-on-zenith|zenith-on-azimuth",
                                              help="Which stage rides on which (overrides the bench file's)."),
@@ -784,6 +905,8 @@ def serve_simulators(
     import time
     import typing
 
+    from pydantic import ValidationError
+
     from drivers.sim.bench import SimBench, SimBenchConfig
 
     bench_file = load_bench_file(config) if config else BenchFile()
@@ -795,7 +918,11 @@ def serve_simulators(
         allowed = typing.get_args(SimBenchConfig.model_fields[field].annotation)
         if value is not None and value not in allowed:
             raise BenchFileError(f"--{field.replace('_', '-')} must be one of {', '.join(allowed)}, got {value!r}")
-    sim = SimBenchConfig.model_validate({**sim.model_dump(), **{k: v for k, v in overrides.items() if v}})
+    try:
+        sim = SimBenchConfig.model_validate({**sim.model_dump(), **{k: v for k, v in overrides.items() if v}})
+    except ValidationError as exc:  # an override that does not fit the rest of the bench
+        problems = "; ".join(e["msg"].removeprefix("Value error, ") for e in exc.errors())
+        raise BenchFileError(f"{config or 'the default bench'} with the overrides: {problems}") from None
     if indi_compatible:
         if sim.table != "lx200":
             raise BenchFileError(f"--indi-compatible applies to the lx200 table, not {sim.table} (--table lx200)")
@@ -808,8 +935,8 @@ def serve_simulators(
         if pty:
             from drivers.sim.pty_bridge import PtyBridge
             bridges = {role: PtyBridge(device).start() for role, device in bench.devices.items()}
-        serial = {"qd": sim.qd.serial, "camera": sim.camera.serial, "css": sim.css.serial}.get(sim.family,
-                                                                                               sim.sensor.serial)
+        serial = {"qd": sim.qd.serial, "camera": sim.camera.serial, "css": sim.css.serial,
+                  "horizon": sim.horizon.serial}.get(sim.family, sim.sensor.serial)
         out.print(f"simulated bench: {sim.table} table, {sim.source} source, {sim.axis_order}, {sim.family} sensor "
                   f"{serial}, time scale {bench.time_scale:g}", highlight=False)
         for role, url in server.urls.items():

@@ -60,6 +60,7 @@ from .messages import (
     Plan,
     Reading,
     Record,
+    SetDiscRadius,
     SetExposure,
     SetTemperature,
     WaitWarm,
@@ -179,7 +180,8 @@ class RunEngine:
                          SetExposure: self._on_set_exposure, SetTemperature: self._on_set_temperature,
                          LampOn: self._on_lamp_on, WaitWarm: self._on_wait_warm, OpenShutter: self._on_open_shutter,
                          CloseShutter: self._on_close_shutter, Record: self._on_record, Log: self._on_log,
-                         Checkpoint: self._on_checkpoint, MayStopEarly: self._on_may_stop_early}
+                         Checkpoint: self._on_checkpoint, MayStopEarly: self._on_may_stop_early,
+                         SetDiscRadius: self._on_set_disc_radius}
         self._run_id: int | None = None
         self._shutter_open = False
         self._shutter_wanted = False
@@ -594,6 +596,28 @@ class RunEngine:
             if self._abort:
                 raise Aborted()
 
+    def _on_set_disc_radius(self, msg: SetDiscRadius) -> float | None:
+        """Move the Earth simulator's iris to the disc radius and wait until it has settled (the driver's own wait and
+        timeout); answers the radius the source reports [°], checked against the tolerance."""
+        if msg.for_points and all(key in self._done for key in msg.for_points):
+            return None  # a resumed run: the readings this radius is for are recorded
+        from drivers.interfaces import EarthSimulator
+
+        source = self.devices.source
+        if not isinstance(source, EarthSimulator):
+            raise DeviceFault(getattr(source, "name", "source"),
+                              "the plan sets a disc radius: the bench's source must be an Earth simulator "
+                              "(devices.source.kind: earth)")
+        self._checkpoint()  # no move while paused or held by an interlock
+        self._act(lambda: source.set_disc_radius_deg(msg.radius_deg))
+        radius = float(source.disc_radius_deg())
+        self._emit("source", disc_radius_deg=radius, journal=False)
+        if not abs(radius - msg.radius_deg) <= msg.tolerance_deg:
+            raise DeviceFault(getattr(source, "name", "source"),
+                              f"the iris stopped at a disc radius of {radius:.4f}°, not {msg.radius_deg:.4f} ± "
+                              f"{msg.tolerance_deg:g}°")
+        return radius
+
     def _on_lamp_on(self, msg: LampOn) -> None:
         self._lamp_wanted = True
         self.devices.source.lamp_on()
@@ -729,7 +753,10 @@ class RunEngine:
 
     def _read(self, repeat: int) -> Reading:
         """One reading, taken as the run's family takes it (:attr:`bench.families.Family.read`)."""
-        reading = self.family.read(self.devices.sensor, repeat, self.clock)
+        if self.family.reads_source:  # a reading that records what the source set (the Earth simulator's disc)
+            reading = self.family.read(self.devices.sensor, repeat, self.clock, source=self.devices.source)
+        else:
+            reading = self.family.read(self.devices.sensor, repeat, self.clock)
         if reading.frame is not None:
             self.last_frame = reading.frame  # for a live view; never read by the engine itself
         return reading

@@ -2,8 +2,9 @@
 
 :func:`connect_bench` is the one place that knows how each driver is opened — its line settings, its
 initialisation, whether it homes — so the run engine only sees a :class:`~drivers.interfaces.RotaryTable`,
-a :class:`~drivers.interfaces.SunSimulator` and the sensor (an :class:`~drivers.interfaces.ImageSensor`, a
-:class:`~drivers.interfaces.QuadrantSensor` or a :class:`~drivers.interfaces.CoarseSunHead`).
+a :class:`~drivers.interfaces.SunSimulator` (the IR Earth simulator of a horizon bench is one) and the sensor (an
+:class:`~drivers.interfaces.ImageSensor`, a :class:`~drivers.interfaces.QuadrantSensor`, a
+:class:`~drivers.interfaces.CoarseSunHead` or a :class:`~drivers.interfaces.HorizonSensor`).
 
 Simulated devices. When the file has a ``simulation:`` section, a :class:`~drivers.sim.bench.SimBench` is
 built and served in-process; a device without a URL (or ``url: sim``) is opened at its ``sim://`` URL. The
@@ -27,9 +28,12 @@ from dataclasses import dataclass, field
 
 from drivers.cmos_sensor import CmosSunSensor
 from drivers.css_sensor import CssHead
+from drivers.earth_simulator import EarthSimulatorSource
 from drivers.errors import DeviceError
+from drivers.horizon_sensor import HorizonSensorModule
 from drivers.interfaces import (
     CoarseSunHead,
+    HorizonSensor,
     ImageSensor,
     Limits,
     QuadrantSensor,
@@ -61,6 +65,8 @@ SMC100_SERIAL = {"baudrate": 57600, "xonxoff": True}  # drivers/newport_smc100.p
 CMOS_BAUDRATE = 921600  # RS-485 adapter of the module (drivers/cmos_sensor.py)
 QD_BAUDRATE = 115200  # the QD module's UART (drivers/qd_protocol.py)
 CSS_BAUDRATE = 115200  # the CSS head's UART (drivers/css_protocol.py)
+HORIZON_BAUDRATE = 115200  # the horizon sensor module's UART (drivers/horizon_protocol.py)
+EARTH_BAUDRATE = 9600  # the Earth simulator's controller, RS-232 (drivers/earth_simulator.py)
 APT_DWELL_S = 0.05  # RTS-cycle dwell of the APT init on hardware (anchors-protocols §2.1)
 SMC100_RESET_WAIT_S = 1.0  # wait after RS before the controller answers (pymeasure)
 
@@ -75,7 +81,7 @@ class BenchConnectionError(DeviceError):
     Attributes
     ----------
     role : str
-        ``table``, ``table-azimuth``, ``table-zenith``, ``lamp``, ``shutter``, ``led`` or ``sensor``.
+        ``table``, ``table-azimuth``, ``table-zenith``, ``lamp``, ``shutter``, ``led``, ``earth`` or ``sensor``.
     url : str
         Where it was opened (a ``sim://`` URL for a simulated device, the source of a camera).
     cause : BaseException
@@ -95,7 +101,7 @@ class BenchDevices:
     ----------
     table : RotaryTable
     source : SunSimulator
-    sensor : ImageSensor, QuadrantSensor or CoarseSunHead
+    sensor : ImageSensor, QuadrantSensor, CoarseSunHead or HorizonSensor
         The sensor of the bench's family (bench.families).
     identities : dict of str to str
         ``table``, ``source``, ``sensor`` → what the device reported as its identity, for run provenance.
@@ -107,7 +113,7 @@ class BenchDevices:
 
     table: RotaryTable
     source: SunSimulator
-    sensor: ImageSensor | QuadrantSensor | CoarseSunHead
+    sensor: ImageSensor | QuadrantSensor | CoarseSunHead | HorizonSensor
     identities: dict[str, str]
     simulated: bool
     sim: SimBench | None = None
@@ -236,6 +242,18 @@ class _Connector:
 
     def source(self) -> SunSimulator:
         config = self.file.devices.source
+        if config.kind == "earth":
+            url, _ = self.url(config.url, "earth")
+            with _connecting("earth", url):
+                port = open_port(url, baudrate=EARTH_BAUDRATE, timeout_s=config.timeout_s)
+                self.closers.append(port.close)
+                earth = EarthSimulatorSource(port, radius_limits_deg=tuple(config.radius_limits_deg),
+                                             temperature_limits_k=tuple(config.temperature_limits_k),
+                                             disc_temperature_k=config.disc_temperature_k,
+                                             standby_temperature_k=config.standby_temperature_k, retries=LINK_RETRIES)
+                earth.identify()  # a silent controller fails here, named
+            self.where["source"] = url
+            return earth
         if config.kind == "xenon":
             url, simulated = self.url(config.lamp_url, "lamp")
             clock, warmup_s = self._timing(simulated, config.warmup_s)
@@ -264,7 +282,7 @@ class _Connector:
             return LedSource(supply, config.current_a, voltage_v=config.voltage_v, warmup_s=warmup_s)
 
     # -- sensor ---------------------------------------------------------------------------------------
-    def sensor(self) -> ImageSensor | QuadrantSensor | CoarseSunHead:
+    def sensor(self) -> ImageSensor | QuadrantSensor | CoarseSunHead | HorizonSensor:
         config = self.file.devices.sensor
         if config.kind == "camera":
             if config.source is None:
@@ -287,6 +305,14 @@ class _Connector:
                 sensor.identify()  # a silent module fails here, named
             self.where["sensor"] = url
             return sensor
+        if config.kind == "horizon":
+            with _connecting("sensor", url):
+                port = open_port(url, baudrate=HORIZON_BAUDRATE, timeout_s=config.timeout_s)
+                self.closers.append(port.close)
+                module = HorizonSensorModule(port, retries=LINK_RETRIES)
+                module.identify()  # a silent module fails here, named
+            self.where["sensor"] = url
+            return module
         if config.kind == "css":
             with _connecting("sensor", url):
                 port = open_port(url, baudrate=CSS_BAUDRATE, timeout_s=config.timeout_s)

@@ -138,6 +138,18 @@ class SetTemperature(Msg):
 
 
 @dataclass(frozen=True)
+class SetDiscRadius(Msg):
+    """Set the Earth simulator's disc radius (its iris) and wait until it has settled within `tolerance_deg`; the
+    answer is the radius the source reports [°]. A source that is no Earth simulator, or an iris that stops off the
+    target, faults the run. When every point of `for_points` is already recorded (a resumed run), nothing is set and
+    the answer is None."""
+
+    radius_deg: float
+    tolerance_deg: float = 0.02
+    for_points: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
 class Capture(Msg):
     """Take readings where the table is and answer them (not recorded: probes, auto-exposure)."""
 

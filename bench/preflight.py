@@ -13,7 +13,19 @@ from dataclasses import dataclass, field
 from calibration.design_of_experiments import move_time_s
 from drivers.errors import LimitError
 
-from .messages import Capture, MayStopEarly, Measure, Move, Plan, Point, Reading, SetExposure, SetTemperature, WaitWarm
+from .messages import (
+    Capture,
+    MayStopEarly,
+    Measure,
+    Move,
+    Plan,
+    Point,
+    Reading,
+    SetDiscRadius,
+    SetExposure,
+    SetTemperature,
+    WaitWarm,
+)
 
 
 @dataclass(frozen=True)
@@ -32,6 +44,8 @@ class TimingModel:
         Lamp warm-up from cold [s].
     temperature_settle_s : float
         A sensor's thermal control reaching a new set-point (an upper estimate) [s].
+    disc_settle_s : float
+        An Earth simulator's iris moving to a new disc radius and settling (an upper estimate) [s].
     azimuth_rate_deg_s, azimuth_accel_deg_s2 : float or None
         The azimuth axis's speed and acceleration when they differ from the zenith axis's.
 
@@ -44,6 +58,7 @@ class TimingModel:
     frame_overhead_s: float = 0.02
     warmup_s: float = 0.0
     temperature_settle_s: float = 180.0
+    disc_settle_s: float = 30.0
     azimuth_rate_deg_s: float | None = None
     azimuth_accel_deg_s2: float | None = None
 
@@ -190,6 +205,9 @@ def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_rea
         elif isinstance(msg, SetTemperature):
             duration += timing.temperature_settle_s
             answer = msg.temperature_c
+        elif isinstance(msg, SetDiscRadius):
+            duration += timing.disc_settle_s
+            answer = msg.radius_deg
         elif isinstance(msg, WaitWarm):
             duration += timing.warmup_s
             warmup += timing.warmup_s

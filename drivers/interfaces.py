@@ -486,3 +486,136 @@ class CoarseSunHead(ABC):
     def temperature_c(self) -> float:
         """Head temperature [°C]."""
         return self.temperature_status().temperature_c
+
+
+@dataclass(frozen=True)
+class HorizonScan:
+    """One revolution of a dual-cone scanning Earth-horizon sensor (seed 004), as the module reports it.
+
+    Times are measured by the module from its index mark (the scan's phase reference, δ = 0 towards body +z in
+    the package's conventions, calibration/horizon/__init__.py), so a phase is ``360° · t / period_s``; the
+    module's locator is the normalised constant-threshold one (seed 004 eq. 2.1) with linear interpolation
+    between samples.
+
+    Attributes
+    ----------
+    revolution : int
+        The module's revolution counter (revolutions since power-up; a gap means revolutions were skipped).
+    period_s : float
+        This revolution's period, index mark to index mark, as the module measured it [s].
+    t_out_s : (float, float)
+        Per cone (1, 2): time after the index mark of the falling edge (Earth → space) [s]; NaN when the
+        module found none.
+    t_in_s : (float, float)
+        Per cone: time after the index mark of the rising edge (space → Earth) [s]; NaN when none.
+    level_space, level_earth : (float, float)
+        Per cone: the pulse's space (low) and Earth (high) levels the locator normalised with [counts].
+    temperature_c : float
+        The head's temperature [°C].
+    saturated : (bool, bool)
+        Per cone: a sample of the pulse was at the ADC's full scale (something far hotter than the Earth, a
+        blinding source, was in view): its edges are not to be trusted.
+    """
+
+    revolution: int
+    period_s: float
+    t_out_s: tuple[float, float]
+    t_in_s: tuple[float, float]
+    level_space: tuple[float, float]
+    level_earth: tuple[float, float]
+    temperature_c: float
+    saturated: tuple[bool, bool] = (False, False)
+
+    @property
+    def phase_out_deg(self) -> tuple[float, float]:
+        """Per cone: the falling edge's phase, 360° · t_out / period [°] (NaN when not found)."""
+        return tuple(360.0 * t / self.period_s for t in self.t_out_s)  # type: ignore[return-value]
+
+    @property
+    def phase_in_deg(self) -> tuple[float, float]:
+        """Per cone: the rising edge's phase, 360° · t_in / period [°] (NaN when not found)."""
+        return tuple(360.0 * t / self.period_s for t in self.t_in_s)  # type: ignore[return-value]
+
+    @property
+    def valid(self) -> tuple[bool, bool]:
+        """Per cone: both edges were found and the pulse was not saturated."""
+        return tuple(bool(np.isfinite(o) and np.isfinite(i) and not s)  # type: ignore[return-value]
+                     for o, i, s in zip(self.t_out_s, self.t_in_s, self.saturated))
+
+
+@dataclass(frozen=True)
+class HorizonPulse:
+    """The last revolution's sampled pulse of each cone, for the live view (decimated by the module).
+
+    Attributes
+    ----------
+    period_s : float
+        The revolution's period [s]; sample j of N lies at ``j · period_s / N`` after the index mark.
+    samples : ndarray, shape (2, N)
+        The detector's level per cone [counts].
+    threshold : ndarray, shape (2,)
+        The level the locator compared against per cone [counts].
+    """
+
+    period_s: float
+    samples: np.ndarray
+    threshold: np.ndarray
+
+    @property
+    def phase_deg(self) -> np.ndarray:
+        """The phase of each sample [°], shape (N,)."""
+        return np.arange(self.samples.shape[1]) * 360.0 / self.samples.shape[1]
+
+
+class HorizonSensor(ABC):
+    """A scanning Earth-horizon sensor (seed 004's dual-cone scanner): horizon crossing times per revolution."""
+
+    name: str
+    #: True when :meth:`identify`'s serial is the sensor's own (the run checks it is the sensor it expects)
+    reports_serial: bool = False
+
+    @abstractmethod
+    def identify(self) -> SensorIdentity: ...
+
+    @abstractmethod
+    def read_scans(self, n: int = 1) -> list[HorizonScan]:
+        """The next `n` complete revolutions (blocks about `n` scan periods)."""
+
+    @abstractmethod
+    def pulse(self) -> HorizonPulse:
+        """The last revolution's sampled pulse per cone."""
+
+    @abstractmethod
+    def temperature_c(self) -> float:
+        """The head's temperature [°C]."""
+
+
+class EarthSimulator(SunSimulator):
+    """An IR Earth simulator as the bench's source: a warm disc (heater) behind an iris, a cold cover before it.
+
+    As a :class:`SunSimulator`: ``lamp_on`` = heater on to the disc setpoint, ``status().warm`` = the disc's
+    temperature has settled, ``open_shutter``/``close_shutter`` = the cold cover, ``standby`` = cover closed and
+    heater at its standby setpoint, ``lamp_off`` = heater off. The iris sets the disc's angular radius.
+    """
+
+    @abstractmethod
+    def set_disc_radius_deg(self, radius_deg: float) -> None:
+        """Move the iris to `radius_deg` [°] and wait until it has settled; soft limits are checked first
+        (:class:`~drivers.errors.LimitError`), a move that does not finish in time raises
+        :class:`~drivers.errors.DeviceTimeout`."""
+
+    @abstractmethod
+    def disc_radius_deg(self) -> float:
+        """The disc's angular radius as the iris reports it [°]."""
+
+    @abstractmethod
+    def disc_settled(self) -> bool:
+        """The iris has stopped at its target."""
+
+    @abstractmethod
+    def set_disc_temperature_k(self, kelvin: float) -> None:
+        """The heater's setpoint for the disc [K] (used from the next :meth:`lamp_on`, at once when on)."""
+
+    @abstractmethod
+    def disc_temperature_k(self) -> float:
+        """The disc's measured temperature [K]."""

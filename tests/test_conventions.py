@@ -231,6 +231,17 @@ def test_the_css_simulator_imports_no_calibration():
     assert not bad, "\n".join(bad)
 
 
+def test_the_horizon_simulator_imports_no_calibration():
+    """The horizon sensor's simulator, its physics and the Earth simulator (drivers/sim/horizon_*.py,
+    earth_simulator.py) are their own: calibration/horizon fits what they make, so they take nothing of calibration/
+    (not the cone geometry of calibration/horizon/scan.py, not its constants)."""
+    paths = sorted((ROOT / "drivers" / "sim").glob("horizon_*.py")) + [ROOT / "drivers" / "sim" / "earth_simulator.py"]
+    assert ROOT / "drivers" / "sim" / "horizon_sensor.py" in paths, "drivers/sim/horizon_sensor.py is missing"
+    bad = [f"{_where(p)}:{line} imports {m}" for p in paths for m, line in _imported_modules(p)
+           if m.split(".")[0] == "calibration"]
+    assert not bad, "\n".join(bad)
+
+
 def test_the_import_reader_resolves_relative_and_nested_imports(tmp_path):
     pkg = tmp_path / "top" / "sub"
     pkg.mkdir(parents=True)
@@ -340,6 +351,11 @@ WIRE_DRIVERS = {
         WireDriver("drivers/sim/cmos_sensor.py", "CmosSensorSimulator", "tests/drivers/test_cmos_sensor.py"),
     "drivers/css_sensor.py:CssHead":
         WireDriver("drivers/sim/css_head.py", "CssHeadSimulator", "tests/drivers/test_css_sensor.py"),
+    "drivers/earth_simulator.py:EarthSimulatorSource":
+        WireDriver("drivers/sim/earth_simulator.py", "EarthSimulatorSimulator",
+                   "tests/drivers/test_earth_simulator.py"),
+    "drivers/horizon_sensor.py:HorizonSensorModule":
+        WireDriver("drivers/sim/horizon_sensor.py", "HorizonSensorSimulator", "tests/drivers/test_horizon_sensor.py"),
     "drivers/meade.py:LX200Table":
         WireDriver("drivers/sim/lx200.py", "LX200Simulator", "tests/drivers/test_meade.py"),
     "drivers/newport_smc100.py:Smc100Axis":
@@ -493,6 +509,7 @@ FAMILY_PARTS = {
     "qd": FamilyParts("calibration/qd", "drivers/sim/qd_sensor.py"),
     "camera": FamilyParts("calibration/camera", "drivers/sim/camera.py"),
     "css": FamilyParts("calibration/css", "drivers/sim/css_head.py"),
+    "horizon": FamilyParts("calibration/horizon", "drivers/sim/horizon_sensor.py"),
 }
 
 #: Families whose simulator is not a WIRE_DRIVERS simulator, each named with the reason it stands (the rule holds

@@ -61,6 +61,9 @@ class Family:
         The bench file's ``devices.sensor.kind`` values whose sensor this family reads.
     has_exposure : bool
         Its sensor is an image sensor with an exposure time (frames for a live view).
+    reads_source : bool
+        Its `read` takes the bench's source too, ``read(sensor, repeat, clock, source=…)``, to record what the source
+        set with each reading (the Earth simulator's disc radius).
     """
 
     name: str
@@ -79,6 +82,7 @@ class Family:
     c_header: Callable[..., str]
     sensor_kinds: tuple[str, ...] = ()
     has_exposure: bool = False
+    reads_source: bool = False
 
 
 _FAMILIES: dict[str, Family] = {}
@@ -148,4 +152,4 @@ def table_mount(axis_order: str, geometry):
 def _load() -> None:
     # the families register themselves on import; imported here, late, because they import the bench modules
     # that import this registry
-    from . import camera, cmos, css, qd  # noqa: F401
+    from . import camera, cmos, css, horizon, qd  # noqa: F401

@@ -22,6 +22,9 @@ from .camera import CameraSimConfig, CameraTruth, SimulatedCamera, camera_fleet_
 from .clock import SimClock
 from .css_head import CssHeadConfig, css_fleet_truth
 from .css_optics import CssTruth
+from .earth_simulator import KELVIN, EarthSimulatorConfig, EarthSimulatorModel
+from .horizon_optics import HorizonTruth
+from .horizon_sensor import HorizonSensorConfig, horizon_fleet_truth
 from .lamp import LED, XENON
 from .motion import AxisSpec
 from .qd_optics import QdTruth, qd_fleet_truth
@@ -148,21 +151,43 @@ class SimBenchConfig(_Strict):
 
     time_scale: float = Field(1.0, ge=0)
     seed: int = 0
-    # the sensor under test: CMOS pinhole (seed 003), QD (seed 002), camera (seed 001) or CSS head (seed 000)
-    family: Literal["cmos", "qd", "camera", "css"] = "cmos"
+    # the sensor under test: CMOS pinhole (seed 003), QD (seed 002), camera (seed 001), CSS head (seed 000) or
+    # scanning Earth-horizon sensor (seed 004, in front of the IR Earth simulator: source earth)
+    family: Literal["cmos", "qd", "camera", "css", "horizon"] = "cmos"
     table: Literal["apt", "lx200", "smc100"] = "apt"
     axis_order: Literal["azimuth-on-zenith", "zenith-on-azimuth"] = "azimuth-on-zenith"
-    source: Literal["xenon", "led"] = "xenon"
+    source: Literal["xenon", "led", "earth"] = "xenon"
     geometry: GeometryConfig = GeometryConfig()
     sensor: SensorConfig = SensorConfig()
     qd: QdSensorConfig = QdSensorConfig()  # the QD module, used when `family` is qd
     camera: CameraSimConfig = CameraSimConfig()  # the camera sun sensor, used when `family` is camera
     css: CssHeadConfig = CssHeadConfig()  # the coarse-sun-sensor head, used when `family` is css
+    horizon: HorizonSensorConfig = HorizonSensorConfig()  # the horizon sensor, used when `family` is horizon
+    earth: EarthSimulatorConfig = EarthSimulatorConfig()  # the IR Earth simulator, used when `source` is earth
     mount: MountConfig = MountConfig()
     azimuth_axis: AxisConfig = AxisConfig()
     zenith_axis: AxisConfig = AxisConfig(hard_limits_deg=(-95.0, 95.0))  # the defaults are examples/bench-sim.yaml
     lx200: Lx200SimConfig = Lx200SimConfig()  # used when `table` is lx200
     temperature_c: float = 22.0
+
+    @model_validator(mode="before")
+    @classmethod
+    def _earth_follows_horizon(cls, data):
+        # a horizon bench's source is the Earth simulator, and the other way round, unless the file says otherwise
+        if isinstance(data, dict):
+            if data.get("family") == "horizon" and "source" not in data:
+                data = {**data, "source": "earth"}
+            elif data.get("source") == "earth" and "family" not in data:
+                data = {**data, "family": "horizon"}
+        return data
+
+    @model_validator(mode="after")
+    def _earth_goes_with_horizon(self):
+        # the horizon sensor sees only an Earth simulator, and an Earth simulator lights no sun sensor
+        if (self.family == "horizon") != (self.source == "earth"):
+            raise ValueError(f"family {self.family!r} with source {self.source!r}: the horizon sensor faces the "
+                             "Earth simulator (family: horizon with source: earth), and only it does")
+        return self
 
 
 _prefixes = itertools.count()
@@ -176,8 +201,8 @@ class SimBench:
     world : SimWorld
     devices : dict of str to SimDevice
         By role: ``table`` (LX200) or ``table-azimuth`` and ``table-zenith`` (APT, SMC100), ``lamp`` and
-        ``shutter`` (xenon) or ``led`` (LED), ``sensor`` (a CMOS or QD module, a CSS head): the devices served on
-        a wire.
+        ``shutter`` (xenon), ``led`` (LED) or ``earth`` (the IR Earth simulator's controller), ``sensor`` (a CMOS
+        or QD module, a CSS head, a horizon sensor): the devices served on a wire.
     camera : SimulatedCamera or None
         The camera sun sensor of a camera bench (``family: camera``): an in-process
         :class:`~drivers.interfaces.ImageSensor`, not served on a wire (:mod:`drivers.sim.camera` says why);
@@ -193,6 +218,9 @@ class SimBench:
                               lamp_spec=XENON if config.source == "xenon" else LED, seed=config.seed,
                               temperature_c=config.temperature_c, axis_order=config.axis_order)
         self.camera = SimulatedCamera(self.world, config.camera.truth()) if config.family == "camera" else None
+        #: the IR Earth simulator's instrument (source earth): its controller serves it, the horizon sensor faces it
+        self.earth = EarthSimulatorModel(config.earth, clock, lambda: self.world.temperature_c + KELVIN) \
+            if config.source == "earth" else None
         self.devices = {**self._table(), **self._source(), **self._sensor()}
         self._registered: list[str] = []
 
@@ -213,7 +241,10 @@ class SimBench:
 
     @property
     def lamp_warm_time_s(self) -> float:
-        """The simulated lamp's own warm-up time, in simulated time [s]."""
+        """The simulated lamp's own warm-up time, in simulated time [s] (the Earth simulator's: its disc settling
+        from the room to its power-up setpoint)."""
+        if self.earth is not None:
+            return self.config.earth.settle_time_s(self.config.earth.setpoint_k - self.config.temperature_c - KELVIN)
         return self.world.lamp.spec.warm_time_s
 
     @property
@@ -236,13 +267,14 @@ class SimBench:
         """Put the bench in a named set-up (:data:`drivers.sim.backdoor.SETUPS`: ``normal``, ``lamp_fault`` …)."""
         self.faults.setup(name)
 
-    def mount_sensor(self, serial: str) -> SensorTruth | QdTruth | CameraTruth | CssTruth:
+    def mount_sensor(self, serial: str) -> SensorTruth | QdTruth | CameraTruth | CssTruth | HorizonTruth:
         """Put the sensor of serial `serial` on the bench (what the operator does between the sensors of a
         fleet): the configured sensor for its own serial, any other built from its serial around it
         (:func:`~drivers.sim.world.fleet_sensor`; a QD module: :func:`~drivers.sim.qd_optics.qd_fleet_truth`,
         mounted on the QD simulator, powered up fresh; a camera: :func:`~drivers.sim.camera.camera_fleet_truth`;
         a CSS head: :func:`~drivers.sim.css_head.css_fleet_truth`, mounted on the head's simulator, powered up
-        fresh). The module then identifies itself with that serial."""
+        fresh; a horizon sensor: :func:`~drivers.sim.horizon_sensor.horizon_fleet_truth`, likewise). The module then
+        identifies itself with that serial."""
         if self.camera is not None:
             truth = camera_fleet_truth(self.config.camera.truth(), serial)
             self.camera.mount(truth)
@@ -255,6 +287,10 @@ class SimBench:
             head = css_fleet_truth(self.config.css, serial)
             self.devices["sensor"].mount(head)
             return head
+        if self.config.family == "horizon":
+            sensor = horizon_fleet_truth(self.config.horizon, serial)
+            self.devices["sensor"].mount(sensor)
+            return sensor
         self.world.sensor = fleet_sensor(self.config.sensor.truth(), serial)
         return self.world.sensor
 
@@ -274,6 +310,9 @@ class SimBench:
         return {"table-azimuth": a, "table-zenith": z}
 
     def _source(self) -> dict:
+        if self.config.source == "earth":
+            from .earth_simulator import EarthSimulatorSimulator
+            return {"earth": EarthSimulatorSimulator(self.earth, seed=self.config.seed)}
         if self.config.source == "xenon":
             from .oriel69907 import Oriel69907Simulator
             from .shutter import ShutterSimulator
@@ -290,6 +329,9 @@ class SimBench:
         if self.config.family == "css":
             from .css_head import CssHeadSimulator
             return {"sensor": CssHeadSimulator(self.world, self.config.css)}
+        if self.config.family == "horizon":
+            from .horizon_sensor import HorizonSensorSimulator
+            return {"sensor": HorizonSensorSimulator(self.world, self.config.horizon, self.earth)}
         from .cmos_sensor import CmosSensorSimulator
         return {"sensor": CmosSensorSimulator(self.world)}
 

@@ -1,0 +1,163 @@
+"""The horizon family on the command line: `fit horizon` of a Horizon bench data CSV (scans made the long way round by
+tests/horizontools.py, not by the fit's model), the calibration document and C header it writes, `header` and `apply`
+with a horizon calibration, and bad input refused as a user error."""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from ccompiler import c_compiler
+from clitools import assert_user_error, assert_user_error_text, flat, invoke, sunbench_process
+from horizontools import RADII, RECOVERABLE, TRUTH, synthetic
+
+from bench.horizon_datafile import write_horizon_csv
+from calibration.horizon.bench_document import sensor_parameters_from_document
+from calibration.horizon.bench_fit import PARAMETERS, mount_rotation
+
+CHECKS = [(-25.0, 12.0, RADII[1]), (17.0, -9.0, RADII[0]), (5.0, 4.0, RADII[2]), (28.0, 14.0, RADII[1])]
+
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("cli-horizon")
+
+
+@pytest.fixture(scope="module")
+def data_csv(workdir) -> Path:
+    path = workdir / "hz.csv"
+    data = synthetic(rolls=np.arange(-30.0, 30.1, 15.0), pitches=np.array([-15.0, 0.0, 15.0]), repeats=3, check=CHECKS)
+    write_horizon_csv(path, type(data)(data.roll_deg, data.pitch_deg, data.cone, data.phase_out_deg,
+                                       data.phase_in_deg, data.disc_radius_deg, scan=data.scan, repeat=data.repeat,
+                                       check=data.check, sensor_id="HZ-0042"))
+    return path
+
+
+@pytest.fixture(scope="module")
+def fitted(workdir, data_csv):
+    """`fit horizon hz.csv -o CAL.json --header CAL.h`, run once for the module."""
+    cal, header = workdir / "CAL.json", workdir / "CAL.h"
+    result = invoke("fit", "horizon", data_csv, "-o", cal, "--header", header)
+    assert result.exit_code == 0, result.output
+    return result, cal, header
+
+
+def test_fit_prints_the_parameters_the_held_out_figures_and_the_warnings(fitted):
+    result, cal, _ = fitted
+    text = flat(result.stdout)
+    assert "each fitted parameter ± 1σ" in text
+    for name in PARAMETERS:
+        line = next(line for line in result.stdout.splitlines() if line.strip("│ ").startswith(name))
+        assert len(re.findall(r"\d+\.\d+", line)) >= 2, line  # the value and its 1σ
+    assert "mount_pitch_deg (folded into the offsets)" in text
+    assert "χ²/dof" in text and "check points *" in text and "check points, nominal sensor" in text
+    for radius in RADII:
+        assert f"ρ {radius:.3f}° left out" in text
+    # the file's counts: 5 rolls × 3 pitches × 3 radii × 3 repeats + 4 check poses × 3, two cones each
+    assert "135 scans (294 rows, 24 check rows)" in text and "sensor HZ-0042" in text
+    document = json.loads(cal.read_text())
+    assert all(f"warning: {flat(w)}" in text for w in document["warnings"])
+
+
+def test_the_document_holds_the_recovered_errors_with_their_uncertainty(fitted, data_csv):
+    _, cal, _ = fitted
+    document = json.loads(cal.read_text())
+    assert (document["format"], document["version"], document["family"]) == ("sunbench-horizon-calibration", 1,
+                                                                              "horizon")
+    assert document["sensor_id"] == "HZ-0042" and document["source"] == str(data_csv)
+    assert document["software"].startswith("sunbench ") and document["created_utc"]
+    recovered = sensor_parameters_from_document(document)
+    for name in PARAMETERS:
+        entry = document["parameters"][name]
+        assert entry["fitted"] and entry["sd"] > 0
+        assert abs(entry["value"] - getattr(RECOVERABLE, name)) < 4 * entry["sd"], (name, entry)
+    assert recovered.mount_pitch_deg == 0.0 and TRUTH.mount_pitch_deg != 0.0  # folded into the phase offsets
+    names = document["covariance"]["names"]
+    assert names == list(PARAMETERS) and np.array(document["covariance"]["matrix"]).shape == (7, 7)
+    check = document["heldout"]["check"]
+    assert check["calibrated"]["n_scans"] == 12 and check["calibrated"]["roll_rms_deg"] < 0.02
+    assert check["nominal"]["roll_rms_deg"] > 10 * check["calibrated"]["roll_rms_deg"]
+
+
+def test_the_header_compiles_and_holds_the_calibration(workdir, fitted):
+    _, cal, header = fitted
+    document = json.loads(cal.read_text())
+    text = header.read_text()
+    assert "HZ-0042" in text and "check points: roll RMS" in text
+    compiler = c_compiler()
+    program = workdir / "print.c"
+    program.write_text(f'#include <stdio.h>\n#include "{header}"\n'
+                       "int main(void) { int i, j;\n"
+                       '  printf("%.9g %.9g %.9g %.9g %.9g\\n",'
+                       " SUNBENCH_HORIZON_GAMMA1_DEG, SUNBENCH_HORIZON_GAMMA2_DEG,"
+                       " SUNBENCH_HORIZON_PHASE_OFFSET1_DEG, SUNBENCH_HORIZON_PHASE_OFFSET2_DEG,"
+                       " SUNBENCH_HORIZON_RADIUS_BIAS_DEG);\n"
+                       '  for (i = 0; i < 3; i++) for (j = 0; j < 3; j++) printf("%.17g\\n",'
+                       " SUNBENCH_HORIZON_MOUNT[i][j]);\n  return 0; }\n")
+    exe = workdir / "print"
+    done = subprocess.run([compiler, "-std=c99", "-Wall", "-Wextra", "-Werror", str(program), "-o", str(exe)],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    numbers = [float(v) for v in subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split()]
+    p = sensor_parameters_from_document(document)
+    assert numbers[:5] == pytest.approx([p.gamma1_deg, p.gamma2_deg, p.phase_offset1_deg, p.phase_offset2_deg,
+                                         p.radius_bias_deg], abs=1e-6)  # %.9g
+    assert np.allclose(np.reshape(numbers[5:], (3, 3)), mount_rotation(p), atol=1e-9)
+    again = workdir / "again.h"
+    result = invoke("header", cal, "-o", again)
+    assert result.exit_code == 0 and again.read_text() == text
+
+
+def test_apply_gives_each_scans_roll_and_pitch_and_its_error_against_the_table(workdir, fitted, data_csv):
+    _, cal, _ = fitted
+    output = workdir / "applied.csv"
+    result = invoke("apply", cal, data_csv, "-o", output)
+    assert result.exit_code == 0, result.output
+    assert "147 scans' roll and pitch written" in flat(result.stdout)
+    with output.open() as fh:
+        rows = list(csv.DictReader(fh))
+    roll_error = np.array([float(r["roll_error_deg"]) for r in rows])
+    pitch_error = np.array([float(r["pitch_error_deg"]) for r in rows])
+    assert np.sqrt(np.mean(roll_error ** 2)) < 0.02 and np.sqrt(np.mean(pitch_error ** 2)) < 0.01
+    # the sensor's own attitude is the table's turned by the mount: about the table's plus the mount's roll
+    sensor_roll = np.array([float(r["sensor_roll_deg"]) for r in rows])
+    table_roll = np.array([float(r["roll_deg"]) for r in rows])
+    assert np.abs(sensor_roll - table_roll - TRUTH.mount_roll_deg).max() < 0.1
+
+
+@pytest.mark.parametrize("text, fragments", [
+    ("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg\n0,0,3,66,294,68\n",
+     ("row 1 (line 2)", "column 'cone'", "a cone is 1 or 2")),
+    ("roll_deg,pitch_deg,cone,t_out_s,t_in_s,period_s,disc_radius_deg\n0,0,1,184,815,1000,68\n",
+     ("row 1 (line 2)", "column 'period_s'", "times are in seconds")),
+    ("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg\n" + "0,0,1,66,294,68\n0,0,2,66,294,68\n" * 3,
+     ("every fitted scan is at one pose",)),
+])
+def test_fit_refuses_bad_input_as_a_user_error(tmp_path, text, fragments):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    assert_user_error(invoke("fit", "horizon", path, "-o", tmp_path / "cal.json"), *fragments)
+    assert not (tmp_path / "cal.json").exists()
+
+
+def test_a_broken_calibration_is_refused_by_header_and_apply(tmp_path, fitted, data_csv):
+    _, cal, _ = fitted
+    document = json.loads(cal.read_text())
+    document["parameters"]["gamma1_deg"]["value"] = 95.0
+    broken = tmp_path / "broken.json"
+    broken.write_text(json.dumps(document))
+    assert_user_error(invoke("header", broken, "-o", tmp_path / "x.h"), "gamma1_deg", "not in (0, 90)")
+    assert_user_error(invoke("apply", broken, data_csv, "-o", tmp_path / "x.csv"), "gamma1_deg")
+
+
+def test_the_console_script_refuses_bad_input_without_a_traceback(tmp_path):
+    path = tmp_path / "nan.csv"
+    path.write_text("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg\n0,nan,1,66,294,68\n")
+    done = sunbench_process("fit", "horizon", path, cwd=tmp_path)
+    assert_user_error_text(done.stderr, done.returncode, "row 1 (line 2)", "column 'pitch_deg'", "not a finite number")
+    assert done.stdout == ""

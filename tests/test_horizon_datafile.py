@@ -1,0 +1,125 @@
+"""The Horizon bench data CSV (bench.horizon_datafile): written and read back bit for bit, edge times and phases alike,
+the cones of a scan paired without a `scan` column, and every malformed file refused with a DataFileError naming the
+row, its line and the column."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from horizontools import synthetic
+
+from bench.datafile import DataFileError
+from bench.horizon_datafile import read_horizon_csv, read_horizon_frames, write_horizon_csv
+
+
+@pytest.fixture(scope="module")
+def data():
+    small = synthetic(rolls=np.array([-20.0, 0.0, 20.0]), pitches=np.array([-10.0, 10.0]), repeats=2,
+                      check=[(5.0, 3.0, 68.0)])
+    phases = small.phase_in_deg.copy()
+    phases[3] = np.nan  # an edge the module did not find
+    return type(small)(small.roll_deg, small.pitch_deg, small.cone, small.phase_out_deg, phases, small.disc_radius_deg,
+                       scan=small.scan, repeat=small.repeat, check=small.check, sensor_id="HZ-7")
+
+
+def test_written_data_read_back_bit_for_bit(tmp_path, data):
+    path = tmp_path / "hz.csv"
+    temperature = np.linspace(20, 21, len(data))
+    write_horizon_csv(path, data, temperature_c=temperature)
+    frames = read_horizon_frames(path)
+    back = frames.data
+    for name in ("roll_deg", "pitch_deg", "disc_radius_deg", "phase_out_deg"):
+        assert getattr(back, name).tobytes() == getattr(data, name).tobytes(), name
+    assert np.isnan(back.phase_in_deg[3]) and np.nan_to_num(back.phase_in_deg).tobytes() == \
+        np.nan_to_num(data.phase_in_deg).tobytes()
+    for name in ("cone", "scan", "repeat", "check"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(data, name), err_msg=name)
+    assert back.sensor_id == "HZ-7" and frames.temperature_c.tobytes() == temperature.tobytes()
+    assert back.row_id.tolist() == list(range(1, len(data) + 1)) and frames.where(2) == "row 2 (line 3)"
+
+
+def _times_csv(data, path, *, scan=False, period=1.002):
+    """The same scans as edge times after the index mark with a period, the way a module reports them."""
+    lines = ["roll_deg,pitch_deg,cone,t_out_s,t_in_s,period_s,disc_radius_deg,repeat,check"
+             + (",scan" if scan else "")]
+    for i in range(len(data)):
+        t = [("" if not np.isfinite(p) else repr(float(p) / 360.0 * period)) for p in (data.phase_out_deg[i],
+                                                                                     data.phase_in_deg[i])]
+        lines.append(f"{float(data.roll_deg[i])!r},{float(data.pitch_deg[i])!r},{data.cone[i]},{t[0]},{t[1]},"
+                     f"{period!r},{float(data.disc_radius_deg[i])!r},{data.repeat[i]},{int(data.check[i])}"
+                     + (f",{data.scan[i]}" if scan else ""))
+    path.write_text("# the horizon sensor HZ-7\n" + "\n".join(lines) + "\n")
+    return path
+
+
+def test_times_and_periods_are_phases_and_the_cones_of_a_scan_are_paired(tmp_path, data):
+    back = read_horizon_csv(_times_csv(data, tmp_path / "t.csv"))
+    assert np.allclose(back.phase_out_deg, data.phase_out_deg, atol=1e-9, rtol=0)
+    assert np.isnan(back.phase_in_deg[3])
+    # without a scan column the k-th cone-1 and cone-2 rows at one pose and repeat share a scan, as the file's did
+    same = back.scan[:, None] == back.scan[None, :]
+    assert np.array_equal(same, data.scan[:, None] == data.scan[None, :])
+    assert np.unique(back.scan).size == len(data) // 2
+
+
+TIMES = "roll_deg,pitch_deg,cone,t_out_s,t_in_s,period_s,disc_radius_deg,temperature_c"
+
+
+@pytest.mark.parametrize("header, row, words, column", [
+    ("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg", "0,0,3,66,294,68", "a cone is 1 or 2",
+     "cone"),
+    ("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg", "0,0,1.5,66,294,68", "not a whole number",
+     "cone"),
+    ("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg", "95,0,1,66,294,68", "|roll| < 90°",
+     "roll_deg"),
+    ("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg", "0,0,1,66,294,95", "0 < ρ < 90°",
+     "disc_radius_deg"),
+    ("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg", "0,0,1,366,294,68", "not in [0, 360)",
+     "phase_out_deg"),
+    ("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg", "0,0,1,abc,294,68", "not a number",
+     "phase_out_deg"),
+    ("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg", "0,nan,1,66,294,68", "not a finite",
+     "pitch_deg"),
+    (TIMES, "0,0,1,184.5,815.5,1000,68,20", "0 < T ≤ 60 s", "period_s"),
+    (TIMES, "0,0,1,1.2,0.8,1.0,68,20", "not within the revolution", "t_out_s"),
+    (TIMES, "0,0,1,0.2,0.8,1.0,68,300", "not kelvin", "temperature_c"),
+    ("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg,check", "0,0,1,66,294,68,2",
+     "not 0 or 1", "check"),
+])
+def test_a_bad_cell_is_named_by_row_line_and_column(tmp_path, header, row, words, column):
+    path = tmp_path / "bad.csv"
+    good = "0,0,2,0.2,0.8,1.0,68,20" if header == TIMES else "0,0,2,66,294,68" + ",0" * (header.count(",") - 5)
+    path.write_text(f"{header}\n{good}\n{row}\n")
+    with pytest.raises(DataFileError) as info:
+        read_horizon_csv(path)
+    assert words in str(info.value) and info.value.column == column
+    assert (info.value.row, info.value.line) == (2, 3)
+
+
+@pytest.mark.parametrize("text, words", [
+    ("roll_deg,pitch_deg,cone,disc_radius_deg\n0,0,1,68\n", "no edge columns"),
+    ("roll_deg,pitch_deg,cone,t_out_s,t_in_s,disc_radius_deg\n0,0,1,0.2,0.8,68\n", "missing column(s) period_s"),
+    ("roll_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg\n0,1,66,294,68\n", "missing column(s) pitch_deg"),
+    ("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,t_out_s,t_in_s,period_s,disc_radius_deg\n"
+     "0,0,1,66,294,0.2,0.8,1,68\n", "give one or the other"),
+    ("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg\n", "no data rows"),
+    ("zenith_deg,azimuth_deg,x_px,y_px\n1,2,3,4\n", "a CMOS or camera sensor's CSV"),
+    ("zenith_deg,azimuth_deg,pz_vis_a,temperature_c\n1,2,1e-6,20\n", "a CSS head's CSV"),
+    ("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg,sensor_id\n0,0,1,66,294,68,A\n"
+     "0,0,1,66,294,68,B\n", "holds 2 sensors"),
+])
+def test_a_file_that_is_no_horizon_data_says_why(tmp_path, text, words):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    with pytest.raises(DataFileError, match=None) as info:
+        read_horizon_csv(path)
+    assert words in str(info.value)
+
+
+def test_two_rows_of_one_cone_in_one_scan_are_refused(tmp_path):
+    path = tmp_path / "dup.csv"
+    path.write_text("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg,scan\n"
+                    "0,0,1,66,294,68,4\n0,0,2,66,294,68,4\n1,0,1,66,294,68,4\n")
+    with pytest.raises(DataFileError) as info:
+        read_horizon_csv(path)
+    assert "scan 4 has two rows of cone 1" in str(info.value) and (info.value.row, info.value.line) == (3, 4)
