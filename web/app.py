@@ -25,7 +25,23 @@ from drivers.errors import LimitError
 
 from .guard import Guard
 from .idempotency import IdempotencyKeys
-from .routes import camera, campaigns, commands, css, docs, downloads, events, field, fits, pages, qd, run, runs, status
+from .routes import (
+    camera,
+    campaigns,
+    commands,
+    css,
+    docs,
+    downloads,
+    events,
+    field,
+    fits,
+    horizon,
+    pages,
+    qd,
+    run,
+    runs,
+    status,
+)
 from .server import Shutdown
 from .settings import WebSettings
 
@@ -128,7 +144,8 @@ def create_app(service, *, settings: WebSettings) -> FastAPI:
     app.state.shutdown = shutdown
     app.state.idempotency = IdempotencyKeys()
     _install_error_handlers(app)
-    for module in (status, commands, campaigns, run, runs, fits, qd, camera, css, field, downloads, events, docs):
+    for module in (status, commands, campaigns, run, runs, fits, qd, camera, css, horizon, field, downloads, events,
+                   docs):
         app.include_router(module.router)
     pages.install(app)  # the dashboard: /, /launch, /run, /results, /fleet, /field and /static
     return app

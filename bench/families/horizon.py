@@ -85,19 +85,22 @@ def dry_reading(repeat: int, campaign) -> Reading:
 
 
 def summary(readings) -> dict:
-    """A point's mean phases per cone (falling, rising edge) [°] and the disc radius, for the live view."""
+    """A point's mean phases per cone (falling, rising edge) [°], the disc radius and the head's temperature, for the
+    live view; a cone whose edge no reading found is None."""
     ok = [r for r in readings if r.ok]
     if not ok:
-        return {"phase_out_deg": None, "phase_in_deg": None, "disc_radius_deg": None}
+        return {"phase_out_deg": None, "phase_in_deg": None, "disc_radius_deg": None, "temperature_c": None}
 
     def phases(name):
         values = np.array([[np.nan if t is None else 360.0 * t / r.values["period_s"] for t in r.values[name]]
                            for r in ok], float)
-        mean = np.nanmean(values, axis=0) if np.isfinite(values).any() else np.full(2, np.nan)
+        found = np.isfinite(values)
+        mean = np.where(found.any(axis=0), np.nansum(values, axis=0) / np.maximum(found.sum(axis=0), 1), np.nan)
         return [float(v) if np.isfinite(v) else None for v in mean]
 
     return {"phase_out_deg": phases("t_out_s"), "phase_in_deg": phases("t_in_s"),
-            "disc_radius_deg": float(np.mean([r.values["disc_radius_deg"] for r in ok]))}
+            "disc_radius_deg": float(np.mean([r.values["disc_radius_deg"] for r in ok])),
+            "temperature_c": float(np.mean([r.values["temperature_c"] for r in ok]))}
 
 
 def status(sensor) -> dict:

@@ -60,9 +60,10 @@ def serving(home: Path, command: list[str] | None = None, *options: str, timeout
                 assert proc.poll() is None, served.output()
                 assert time.monotonic() < deadline, f"the server did not come up:\n{served.output()}"
                 try:
-                    urllib.request.urlopen(served.base + "/openapi.json", timeout=1)
+                    urllib.request.urlopen(served.base + "/openapi.json", timeout=5)
                     break
-                except (urllib.error.URLError, ConnectionError):
+                except (urllib.error.URLError, ConnectionError, TimeoutError):  # not listening yet, or still building
+                    # the schema (1-2 s on a loaded machine): ask again
                     time.sleep(0.2)
             yield served
         finally:

@@ -275,14 +275,15 @@ def _limits(field) -> tuple[float | None, float | None]:
     return low, high
 
 
-def test_the_launcher_offers_the_seed003_physical_qd_camera_and_css_plans(client):
+def test_the_launcher_offers_every_familys_plans(client):
     # the page holds every plan's fieldset; launch.js keeps those of the bench's family (its <body data-plans>)
     form = _launch_form(client)
-    assert form.options == ["seed003", "physical", "qd-grid", "qd-physical", "qd-dark", "camera-grid", "css-sweep"]
+    assert form.options == ["seed003", "physical", "qd-grid", "qd-physical", "qd-dark", "camera-grid", "css-sweep",
+                            "horizon-grid"]
     assert set(form.options) <= set(typing.get_args(Campaign.model_fields["plan"].annotation))
     # one fieldset per plan, named as the plan (its data-field names Campaign's field: qd_grid for qd-grid)
     assert set(form.inputs) == {None, "seed003", "physical", "qd-grid", "qd-physical", "qd-dark", "camera-grid",
-                                "css-sweep"}
+                                "css-sweep", "horizon-grid"}
     assert {"name", "operator", "sensors"} <= set(form.inputs[None]) and {"plan", "frames"} <= form.selects
 
 

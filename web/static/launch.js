@@ -1,6 +1,6 @@
 // Campaign launcher: the plan (seed 003 or physical on a CMOS bench, qd-grid, qd-physical or qd-dark on a QD one,
-// camera-grid on a camera one, css-sweep on a CSS head's: the plans of the bench's sensor family only) and its
-// procedure's fields, a dry run (preflight), then start.
+// camera-grid on a camera one, css-sweep on a CSS head's, horizon-grid on a horizon sensor's: the plans of the bench's
+// sensor family only) and its procedure's fields, a dry run (preflight), then start.
 import { $, api, duration, el, initTokenForm, report, say } from "./common.js";
 
 const form = $("#campaign-form");
@@ -11,13 +11,14 @@ const fieldset = (plan) => form.querySelector(`fieldset[data-plan="${CSS.escape(
 const field = (name) => form.querySelector(`:scope > label [name="${CSS.escape(name)}"]`);  // not a procedure's
 
 // the procedure of one fieldset as the API takes it: its inputs are named after the model's fields ("a.b" for a
-// key of a mapping); a blank optional field keeps the model's default, a blank required one is sent as null so
-// that the refusal names it
+// key of a mapping); a blank optional field keeps the model's default (a list too, when it says data-blank="default":
+// else a blank list is an empty one), a blank required one is sent as null so that the refusal names it
 function procedure(plan) {
   const body = {};
   for (const input of fieldset(plan).querySelectorAll("[name]")) {
     let value;
     if (input.type === "checkbox") value = input.checked;
+    else if (input.hasAttribute("data-blank") && input.value.trim() === "") continue;  // blank: the model's default
     else if (input.hasAttribute("data-list")) value = list(input.value).map(Number);
     else if (input.value.trim() === "") {
       if (!input.required) continue;

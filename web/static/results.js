@@ -1,5 +1,6 @@
 // Results of a run, in the results view of its sensor family (GET /api/runs/{id}: `results_view`): a QD run's is
-// results-qd.js, a camera run's results-camera.js, a CSS run's results-css.js; a CMOS run's is this module's.
+// results-qd.js, a camera run's results-camera.js, a CSS run's results-css.js, a horizon run's results-horizon.js;
+// a CMOS run's is this module's.
 // The CMOS view: the metrics of every method (table 4.1) and seed 003's figures 4.4 and 4.6–4.9, and of the
 // calibration shown its quality (warnings, rejected frames) and its 1σ pointing uncertainty over the field; of a
 // physical-plan run, its stopping rule's decision after each batch (GET /api/runs/{id}/values).
@@ -12,6 +13,7 @@ import {
 } from "./common.js";
 import { showCameraRun } from "./results-camera.js";
 import { showCssRun } from "./results-css.js";
+import { showHorizonRun } from "./results-horizon.js";
 import { showQdRun } from "./results-qd.js";
 
 const runParam = query("run");
@@ -395,7 +397,7 @@ async function showRun(runId) {
   const [run, runs] = await Promise.all([api(`/api/runs/${runId}`), api("/api/runs")]);
   runHeader(run, runs.data);
   // the results view of the run's family
-  const views = { qd: showQdRun, camera: showCameraRun, css: showCssRun };
+  const views = { qd: showQdRun, camera: showCameraRun, css: showCssRun, horizon: showHorizonRun };
   if (views[run.results_view]) {
     await views[run.results_view](run, { downloads: (method) => downloads(run.id, method) });
     return;

@@ -3,11 +3,12 @@
 // offered only when the engine's state allows it; a run that ended unsafe, said first.
 // What a point shows is what its readings are (the `point` event's fields, the family's summary): spots of a frame
 // (cmos), or quadrant currents (qd: the latest currents and a plot of every point's, instead of the frame and
-// the spot map). The page starts with its bench's kind (<body data-frames>) and follows the events.
+// the spot map; a horizon sensor: each cone's edge phases and Earth chord, and a plot of every point's chords).
+// The page starts with its bench's kind (<body data-frames>) and follows the events.
 /* global Plotly */
 import {
   $, amps, api, currentsPlot, drawLatestFrame, duration, el, fmt, getToken, initTokenForm, LEFT_OUT_MARKER, matrixLayout,
-  PLOT_CONFIG, QUADRANTS, query, report, resumable, say, stopsEarly, unsafeMessage, unsafeText,
+  PLOT_CONFIG, plotLayout, QUADRANTS, query, report, resumable, say, stopsEarly, unsafeMessage, unsafeText,
 } from "./common.js";
 
 const EDGE = "clipped at the detector's edge: left out of the fit";
@@ -42,6 +43,43 @@ function addCurrents(index, values, label) {
   currents.text.push(label);
 }
 
+// a horizon sensor's point (bench/families/horizon.py summary): each cone's mean edge phases [°] and its Earth chord,
+// the rising edge (space → Earth) to the falling one (Earth → space), and the disc radius the source reported
+const horizon = { index: [], chord: [[], []], text: [] };
+const isHorizon = (p) => Boolean(p) && "phase_out_deg" in p;
+const chordOf = (p, k) => {
+  const out = p.phase_out_deg?.[k], into = p.phase_in_deg?.[k];
+  return out === null || out === undefined || into === null || into === undefined ? null : (((out - into) % 360) + 360) % 360;
+};
+const phasesText = (p) => (p.phase_out_deg ? `${[0, 1].map((k) => `cone ${k + 1} in ${fmt(p.phase_in_deg[k], 2)}° out `
+  + `${fmt(p.phase_out_deg[k], 2)}° chord ${fmt(chordOf(p, k), 2)}°`).join("; ")}; disc ${fmt(p.disc_radius_deg, 3)}°`
+  : "no edges");
+
+function addChords(index, p, label) {
+  horizon.index.push(index);
+  [0, 1].forEach((k) => horizon.chord[k].push(chordOf(p, k)));
+  horizon.text.push(label);
+}
+
+// the page's currents parts, named for a horizon sensor (its readings are phases, not currents)
+function nameForHorizon() {
+  const dt = document.querySelector("dt[data-reading='currents']");
+  if (dt) dt.textContent = "Phases";
+  const heading = $("#currents-section h2");
+  if (heading) heading.textContent = "Each cone's Earth chord at each point";
+  const body = $("#n-body").previousElementSibling;  // the source is the Earth simulator's disc, not the Sun
+  if (body) body.textContent = "Disc centre in the body frame";
+}
+
+function drawChords() {
+  Plotly.react("currents-plot", [0, 1].map((k) => ({
+    type: "scatter", mode: "lines+markers", name: `cone ${k + 1}`, x: horizon.index, y: horizon.chord[k],
+    text: horizon.text, marker: { size: 4 }, line: { width: 1 },
+    hovertemplate: `cone ${k + 1} chord %{y:.3f}°<br>%{text}<extra></extra>`,
+  })), { ...plotLayout(runId ? `Earth chords of run ${runId}` : "Earth chords", "point", "chord (rising → falling edge) [°]"),
+    datarevision: `${runId}:${horizon.index.length}` }, PLOT_CONFIG);
+}
+
 const currentsText = (values) => (Array.isArray(values)
   ? `${values.map((v, k) => `${QUADRANTS[k]} ${amps(v)}`).join(", ")}; sum ${amps(values.reduce((a, b) => a + b, 0))}`
   : "no reading");
@@ -57,7 +95,8 @@ function draw() {
   requestAnimationFrame(() => {
     drawPending = false;
     if (reading === "currents") {
-      drawCurrents();
+      if (horizon.index.length) drawChords();
+      else drawCurrents();
       return;
     }
     Plotly.react("spot-plot", [{
@@ -80,6 +119,7 @@ function resetSpots() {
   for (const k of Object.keys(spots)) spots[k] = [];
   for (const k of Object.keys(clipped)) clipped[k] = [];
   Object.assign(currents, { index: [], q: [[], [], [], []], sum: [], text: [] });
+  Object.assign(horizon, { index: [], chord: [[], []], text: [] });
   seenKeys.clear();
   draw();
 }
@@ -197,6 +237,7 @@ const signalsText = (signals) => {
 function pointLine(p, edgeFlags) {
   const where = `table azimuth ${fmt(p.azimuth_deg, 1)}°, zenith stage ${fmt(p.zenith_stage_deg, 2)}°`;
   if ("currents_a" in p) return `${p.key} (${p.stage}): ${where} → ${currentsText(p.currents_a)}`;
+  if (isHorizon(p)) return `${p.key} (${p.stage}): ${where} → ${phasesText(p)}`;
   if ("signals" in p) return `${p.key} (${p.stage}): ${where} → ${signalsText(p.signals)}`;
   const found = p.spots.length ? p.spots.map(([x, y], i) => spotText(x, y) + (edgeFlags[i] ? " clipped at the edge" : ""))
     .join(", ") : "no spot";
@@ -210,8 +251,9 @@ function showPoint(d) {
   $("#n-table").textContent = `azimuth ${fmt(d.azimuth_deg, 3)}°, zenith stage ${fmt(d.zenith_stage_deg, 3)}°`;
   $("#n-body").textContent = d.zenith_deg === undefined ? "–"
     : `zenith ${fmt(d.zenith_deg, 3)}°, azimuth ${fmt(d.azimuth_body_deg, 3)}°`;
-  if ("currents_a" in d || "signals" in d) {
-    $("#n-currents").textContent = "signals" in d ? signalsText(d.signals) : currentsText(d.currents_a);
+  if ("currents_a" in d || "signals" in d || isHorizon(d)) {
+    $("#n-currents").textContent = "signals" in d ? signalsText(d.signals)
+      : isHorizon(d) ? phasesText(d) : currentsText(d.currents_a);
     $("#n-temperature").textContent = d.temperature_c === null || d.temperature_c === undefined ? "–"
       : `${fmt(d.temperature_c, 2)} °C`;
     return;
@@ -301,15 +343,17 @@ async function catchUp() {
     // points that arrived as events meanwhile are on the map already
     const earlier = points.data.filter((p) => !seenKeys.has(p.key));
     if (earlier.some((p) => p.summary && "currents_a" in p.summary)) showReading("currents");
+    if (earlier.some((p) => isHorizon(p.summary))) { nameForHorizon(); showReading("currents"); }
     points.data.forEach((p, i) => {
       if (seenKeys.has(p.key)) return;
       if (p.summary && "currents_a" in p.summary) addCurrents(i + 1, p.summary.currents_a, `${p.key} (${p.stage})`);
+      else if (isHorizon(p.summary)) addChords(i + 1, p.summary, `${p.key} (${p.stage})`);
       else if (!(p.summary && "signals" in p.summary)) addSpot(p.x_px, p.y_px, p.zenith_stage_deg, p.key, Boolean(p.excluded));
     });
     draw();
     // a photodiode's latest currents, until the next point's event says newer ones
     const last = points.data.at(-1);
-    if (last?.summary && "currents_a" in last.summary && !seenKeys.size) {
+    if (last?.summary && ("currents_a" in last.summary || isHorizon(last.summary)) && !seenKeys.size) {
       showPoint({ ...last, ...last.summary, index: points.data.length, total: e.total });
     }
     // what happened before the page joined, below what it saw live (the list is newest first)
@@ -320,6 +364,7 @@ async function catchUp() {
       ...earlier.map((p) => [new Date(p.completed_utc), "point", `${p.key} (${p.stage}): table azimuth `
         + `${fmt(p.azimuth_deg, 1)}°, zenith stage ${fmt(p.zenith_stage_deg, 2)}° → `
         + (p.summary && "currents_a" in p.summary ? currentsText(p.summary.currents_a)
+          : isHorizon(p.summary) ? phasesText(p.summary)
           : p.summary && "signals" in p.summary ? signalsText(p.summary.signals)
             : p.x_px === null ? "no spot" : spotText(p.x_px, p.y_px) + (p.excluded ? ` (${p.excluded})` : ""))])];
     entries.push(...recordedResults(values.values, points.data));
@@ -368,13 +413,17 @@ const HANDLERS = {
     if ("currents_a" in d) {
       showReading("currents");
       addCurrents(d.index, d.currents_a, `${d.key} (${d.stage})`);
+    } else if (isHorizon(d)) {
+      nameForHorizon();
+      showReading("currents");
+      addChords(d.index, d, `${d.key} (${d.stage})`);
     } else {
       if ("spots" in d) showReading("spots");
       (d.spots || []).forEach(([x, y], i) => addSpot(x, y, d.zenith_stage_deg, d.key, Boolean(edge[i])));
     }
     draw();
     showPoint(d);
-    log("point", `${d.index}/${d.total ?? "–"} ${pointLine("currents_a" in d ? d : { ...d, spots: d.spots || [] }, edge)}`);
+    log("point", `${d.index}/${d.total ?? "–"} ${pointLine("currents_a" in d || isHorizon(d) ? d : { ...d, spots: d.spots || [] }, edge)}`);
   },
   record: (d) => logResult(recordText(d.key, d.value)),
   log: (d) => log("log", d.message),
