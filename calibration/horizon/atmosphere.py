@@ -29,6 +29,11 @@ model, stated here so its limits are plain:
   W m⁻² sr⁻¹ at 220, 250 and 288 K (digest §4.2); PSG's "753 W/sr/m²" of the thesis' Table 4-7 is a relative level
   and is not reproduced.
 
+* **Weather** (:class:`WeatherModel`, :func:`weather_profile`): a day's departure from the climatology — a
+  height-correlated random anomaly (2/5/8 K in troposphere/stratosphere/mesosphere), surface pressure, and the polar
+  cold pool — and a band's `strength` and a second k-distribution (:data:`CO2_BAND_SEVEN`), for truths that are not
+  the correction's model.
+
 A ray is described by its **signed tangent height** h_t [km]: the height above the (spherical) surface of its closest
 approach to the Earth's centre. h_t ≥ 0 is a limb ray; h_t < 0 meets the ground at the emission zenith angle
 asin((R + h_t)/R). For a spherical Earth h_t = (R + h) sin η − R at the angle η from nadir (seed 004 eq. 2.3 with
@@ -383,15 +388,16 @@ def limb_radiance(column: AtmosphereColumn, tangent_km, band: BandModel = CO2_BA
     limb = flat >= 0
     total = np.zeros(flat.size)
     b_surface = planck_band_radiance(column.temperature_k[0], band.band_um)
-    for w, sig in zip(weights, sigma):
-        dtau = sig * n_mid * ds * 1e3  # (rays, layers), layer k from z_k to z_k+1
-        emit = b_mid * -np.expm1(-dtau)
-        above = np.cumsum(dtau[:, ::-1], axis=-1)[:, ::-1] - dtau  # from a layer's top to the top of the atmosphere
-        below = np.cumsum(dtau, axis=-1) - dtau  # from the tangent point (or ground) to a layer's bottom
-        near = np.sum(emit * np.exp(-above), axis=-1)
-        tau_half = np.sum(dtau, axis=-1)
-        far = np.sum(emit * np.exp(-below), axis=-1) * np.exp(-tau_half)
-        ground = band.surface_emissivity * b_surface * np.exp(-tau_half)
+    col = n_mid * ds * 1e3  # air column per layer [m⁻²] (rays, layers), layer k from z_k to z_k+1
+    col_above = np.cumsum(col[:, ::-1], axis=-1)[:, ::-1] - col  # from a layer's top to the top of the atmosphere
+    col_below = np.cumsum(col, axis=-1) - col  # from the tangent point (or ground) to a layer's bottom
+    col_half = np.sum(col, axis=-1)
+    for w, sig in zip(weights, sigma):  # optical depth = σ × column, so the cumulative sums serve every sub-band
+        emit = b_mid * -np.expm1(-sig * col)
+        near = np.sum(emit * np.exp(-sig * col_above), axis=-1)
+        transmission = np.exp(-sig * col_half)
+        far = np.sum(emit * np.exp(-sig * col_below), axis=-1) * transmission
+        ground = band.surface_emissivity * b_surface * transmission
         total += w * (near + np.where(limb, far, ground))
     total = np.where(flat > cutoff_km, 0.0, total)
     return total.reshape(h_t.shape)
@@ -413,12 +419,14 @@ class RadianceTable:
 
 
 def radiance_table(prof: TemperatureProfile | str = "us-standard-1976", band: BandModel = CO2_BAND,
-                   radius_km: float = EQUATORIAL_RADIUS_KM, step_km: float = 0.1) -> RadianceTable:
+                   radius_km: float = EQUATORIAL_RADIUS_KM, step_km: float = 0.1,
+                   layer_km: float = _LAYER_KM) -> RadianceTable:
     """:func:`limb_radiance` (seed 004 §2-4-3) of a profile on a grid of signed tangent heights — fine across the
     limb (every `step_km` from −20 to 100 km) and coarser over the disc (down to −R) — for fast interpolation in
-    pulses."""
+    pulses. `layer_km` is the atmosphere's layer thickness for the radiative transfer (1 km moves the horizon by
+    ~0.05 km from 0.5 km's, at half the cost)."""
     prof = profile(prof) if isinstance(prof, str) else prof
-    column = atmosphere_column(prof, radius_km=radius_km)
+    column = atmosphere_column(prof, step_km=layer_km, radius_km=radius_km)
     disc = -radius_km * (1.0 - np.cos(np.radians(np.linspace(89.0, 0.0, 90)))) - 20.0
     limb = np.arange(-20.0, RADIANCE_CUTOFF_KM + 0.5 * step_km, step_km)
     heights = np.unique(np.concatenate([np.clip(disc, -radius_km + 1.0, None), limb]))

@@ -13,6 +13,11 @@ for one cone, or a stack (n_cones, N) of them. It is high on the Earth and low o
 * **Pre-filter**: a centred moving average (symmetric, so it does not move an edge that is symmetric about its
   midpoint; the thesis filtered its PSG pulses without saying how, §4-5).
 
+* **Edge locators** (one window holding one edge, :func:`locate_edge`): eq. 2.1 normalised by the whole pulse's peak
+  (the thesis') or by the edge's own level just inside the disc (:func:`local_reference`), eq. 2.2 likewise, the
+  steepest slope (:func:`inflection_locator`) and the foot of a two-level line (:func:`two_level_locator`). All but
+  the first are blind to the crossing's radiance scale, which weather changes by ~2 %/K.
+
 The edge leaving the Earth (falling, Earth → sky) is ``out``; the one coming back (rising) is ``in``
 (:mod:`calibration.horizon` conventions). Phases are in degrees, in [0, 360) when `period_deg` wraps them.
 """

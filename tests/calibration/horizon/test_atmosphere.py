@@ -76,3 +76,53 @@ def test_seasonal_profile_is_hemispherically_alike_in_april_and_rejects_bad_lati
         A.seasonal_profile(95.0, 103)
     with pytest.raises(ValueError, match="unknown profile"):
         A.profile("martian")
+
+
+def test_weather_anomaly_has_the_stated_size_and_height_correlation():
+    """400 draws of the ordinary weather: standard deviation 2 K at 5 km, 5 K at 30 km, 8 K at 80 km (±10 %), and
+    the correlation between 30 and 36 km near exp(−½) = 0.61 (6 km correlation length)."""
+    rng = np.random.default_rng(4)
+    z = np.arange(0.0, 100.01, 0.5)
+    draws = np.array([A.temperature_anomaly_k(rng, A.ORDINARY_WEATHER, z) for _ in range(400)])
+    std = draws.std(axis=0)
+    for height, sigma in ((5.0, 2.0), (30.0, 5.0), (80.0, 8.0)):
+        assert std[np.searchsorted(z, height)] == pytest.approx(sigma, rel=0.1), height
+    r = np.corrcoef(draws[:, np.searchsorted(z, 30.0)], draws[:, np.searchsorted(z, 36.0)])[0, 1]
+    assert r == pytest.approx(np.exp(-0.5), abs=0.08)
+
+
+def test_cold_pool_cools_the_polar_lower_stratosphere_only():
+    """The cold pool is −depth from 18 to 30 km, 0 below 12 and above 40 km; a weather profile carries it only
+    poleward of 60° (same draw otherwise), and it lowers the thesis' locator's horizon by more than 10 km."""
+    assert A.cold_pool_anomaly_k([10.0, 20.0, 29.0, 41.0], 25.0) == pytest.approx([0.0, -25.0, -25.0, 0.0])
+    weather = A.WeatherModel(cold_pool_probability=1.0, cold_pool_depth_k=(25.0, 25.0))
+    base = A.seasonal_profile(70.0, 103)
+    polar = A.weather_profile(base, 70.0, np.random.default_rng(1), weather)
+    lower = A.weather_profile(base, 50.0, np.random.default_rng(1), weather)
+    assert polar.temperature(24.0) - lower.temperature(24.0) == pytest.approx(-25.0, abs=1e-9)
+    assert polar.temperature(5.0) == pytest.approx(lower.temperature(5.0), abs=1e-9)
+    h_base = effective_horizon_height_km(A.radiance_table(base, step_km=0.5), 504.652)
+    h_pool = effective_horizon_height_km(A.radiance_table(polar, step_km=0.5), 504.652)
+    assert h_base - h_pool > 10.0
+    with pytest.raises(ValueError, match="probability"):
+        A.WeatherModel(cold_pool_probability=1.5)
+
+
+def test_band_strength_and_the_seven_band_model_move_the_co2_horizon_as_stated(tables):
+    """A band 25 % stronger: where the limb is optically thin (70–90 km) its radiance is 1.25× (τ ∝ S), and the
+    point-boresight half-radiance height rises (measured 3.9 km for US 1976: more than the thin-limb H ln 1.25 ≈
+    1.6 km, as the opaque core's plateau rises too); the 7-sub-band model's half-radiance height is within 1.3 km of
+    the default's for all six profiles."""
+    ref = float(A.tangent_height_of_angle_km(20.0, 504.652))
+    us76 = A.profile("us-standard-1976")
+    stronger = A.BandModel(A.CO2_BAND.weights, A.CO2_BAND.unit_depth_heights_km, strength=1.25)
+    strong_table = A.radiance_table(us76, stronger, step_km=0.25)
+    thin = np.arange(70.0, 90.0, 2.0)
+    assert strong_table(thin) / tables["us-standard-1976"](thin) == pytest.approx(1.25, rel=0.03)
+    shift = A.half_radiance_height_km(strong_table, ref) - A.half_radiance_height_km(tables["us-standard-1976"], ref)
+    assert 1.0 < shift < 6.0, shift
+    for name, table in tables.items():
+        seven = A.radiance_table(name, A.CO2_BAND_SEVEN, step_km=0.25)
+        assert abs(A.half_radiance_height_km(seven, ref) - A.half_radiance_height_km(table, ref)) < 1.3, name
+    with pytest.raises(ValueError, match="strength"):
+        A.BandModel((1.0,), (30.0,), strength=0.0)

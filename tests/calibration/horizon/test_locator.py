@@ -86,3 +86,61 @@ def test_bad_input_is_named():
         locator.constant_locator(phase, np.zeros_like(phase))
     with pytest.raises(ValueError, match="rule"):
         locator.level_crossings(phase, values, 0.5, rule="nearest")
+
+
+def _limb_edge(phase, edge_at, scale=1.0, width=1.5, darkening=0.02):
+    """A rising edge (sky below `edge_at`, disc above) with a plateau that darkens towards the horizon."""
+    plateau = 1.0 + darkening * (phase - edge_at)
+    return scale * plateau * 0.5 * (1.0 + np.tanh((phase - edge_at) / width))
+
+
+def test_edge_locators_blind_to_the_radiance_scale_and_the_thesis_one_is_not():
+    """Scaling the pulse by 0.8 (a crossing 4 K colder, ~2 %/K in this band) leaves the edge-normalised threshold,
+    integrated, inflection and two-level locators where they were (to 1e-9°), while eq. 2.1 normalised by a fixed
+    peak moves by ~0.3° — the thesis' locator's weakness when its peak comes from another atmosphere."""
+    phase = np.arange(80.0, 100.0, 0.36)
+    bright, dim = _limb_edge(phase, 90.0), _limb_edge(phase, 90.0, scale=0.8)
+    for method, options in [("local-threshold", {}), ("local-integrated", {"c2_deg": 1.0}), ("inflection", {}),
+                            ("two-level", {})]:
+        a = locator.locate_edge(method, phase, bright, "in", **options)
+        b = locator.locate_edge(method, phase, dim, "in", **options)
+        assert a == pytest.approx(b, abs=1e-9), method
+    a = locator.locate_edge("peak-threshold", phase, bright, "in", peak=1.0)
+    b = locator.locate_edge("peak-threshold", phase, dim, "in", peak=1.0)
+    assert 0.2 < b - a < 0.5
+
+
+def test_edge_locators_find_a_symmetric_edge_and_mirror_for_the_falling_one():
+    """On a tanh edge without darkening the local 50 % threshold and the steepest slope sit on the edge's centre
+    (to 3e-3° at a 0.36° step: the parabola's residual on a sech² slope, and the plateau 5° in is 0.9987 of 1,
+    each ~0.0016°); the same edge run
+    backwards as an "out" edge gives the mirrored phase to 1e-9°; the local reference is the plateau within
+    `depth_deg` of the edge."""
+    phase = np.arange(80.0, 100.0, 0.36)
+    edge = _limb_edge(phase, 90.1, darkening=0.0)
+    assert locator.threshold_edge_locator(phase, edge, "in") == pytest.approx(90.1, abs=3e-3)
+    assert locator.inflection_locator(phase, edge, "in") == pytest.approx(90.1, abs=3e-3)
+    reference, at = locator.local_reference(phase, edge, "in", depth_deg=5.0)
+    assert reference == pytest.approx(1.0, abs=0.01) and at == pytest.approx(90.1, abs=3e-3)
+    mirrored_phase = -phase[::-1]
+    for method in ("local-threshold", "inflection", "two-level"):
+        rising = locator.locate_edge(method, phase, edge, "in")
+        falling = locator.locate_edge(method, mirrored_phase, edge[::-1], "out")
+        assert falling == pytest.approx(-rising, abs=1e-9), method
+
+
+def test_edge_locators_name_bad_input():
+    phase = np.arange(80.0, 100.0, 0.36)
+    edge = _limb_edge(phase, 90.0)
+    with pytest.raises(ValueError, match="edge must be"):
+        locator.inflection_locator(phase, edge, "up")
+    with pytest.raises(ValueError, match="unknown edge locator"):
+        locator.locate_edge("median", phase, edge)
+    with pytest.raises(ValueError, match="peak"):
+        locator.locate_edge("peak-threshold", phase, edge)
+    with pytest.raises(ValueError, match="does not hold the edge"):
+        locator.threshold_edge_locator(phase, edge, "out")  # a rising window read as a falling edge
+    with pytest.raises(ValueError, match="into the Earth"):
+        locator.local_reference(phase, edge, "in", depth_deg=15.0)
+    with pytest.raises(ValueError, match="levels"):
+        locator.two_level_locator(phase, edge, levels=(0.7, 0.3))
