@@ -53,11 +53,15 @@ was at the ADC's full scale (saturated: something far hotter than the Earth was 
 whose flag is clear is 0 and means nothing. The revolution counter counts the revolutions since power-up: a gap
 between two reads is the revolutions that were not reported.
 
-The locator, per cone and revolution: the space level is the mean of the samples in the lowest quarter of the
-pulse's range, the Earth level the mean of those in the highest quarter; the threshold is ``space + C1 × (Earth −
-space)``; an edge is where the pulse crosses it (with a hysteresis of 5 % of the range against noise), its time
-interpolated linearly between the two samples either side. A pulse whose range is below the module's minimum
-contrast (the detector sees no Earth, or is dead) has no edges.
+The locator, per cone and revolution, in two passes: a first threshold from rough levels (the means of the samples
+in the lowest and the highest quarter of the pulse's range) finds the Earth (the longest run above it) and its two
+edges; then the Earth level is the median of the Earth's samples more than two IFOV diameters of phase (2 · 2α /
+sin γ) from either edge, the space level the median of the space's samples as far from them — the plateaus, so a
+short chord, whose top is narrow, does not lower its Earth level (a plateau too short for that keeps the rough
+level) —, the threshold is ``space + C1 × (Earth − space)`` and an edge is where the pulse crosses it (with a
+hysteresis of 5 % of the range against noise), its time interpolated linearly between the two samples either side.
+The levels a READ_SCANS reports are the plateaus'. A pulse whose range is below the module's minimum contrast (the
+detector sees no Earth, or is dead) has no edges.
 
 GET_PULSE returns the last reported revolution's pulse of both cones, every d-th sample (d the smallest that keeps
 N = samples per revolution / d within MAX_PULSE_SAMPLES): sample j lies at ``j × d × period / samples per

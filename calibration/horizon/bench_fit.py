@@ -73,6 +73,8 @@ ROBUST_SCALE_SIGMA = 3.0
 CORRELATION_WARNING = 0.95
 #: A condition number (of the Jacobian, columns scaled to unit norm) above this is worth a word.
 CONDITION_WARNING = 1e3
+#: Above this the plan does not determine the parameters at all (1σ of degrees or more): no fit, an error saying why.
+CONDITION_LIMIT = 1e5
 #: χ²/dof against the repeat scatter above this: the model misses by more than the noise.
 CHI2_WARNING = 2.0
 #: Held-out figures worse than this × the fitted ones are worth a word.
@@ -654,9 +656,11 @@ def _solve(data, free, start: HorizonSensorParameters, noise: EdgeNoise, use, lo
     observed = data.phases()
     sigma = noise.per_row(data.cone)
     x0 = start.vector()[[PARAMETERS.index(n) for n in free]]
+    # the Jacobian's steps are scipy's default, √ε·max(1, |x|) [°]: a step relative to the value alone (diff_step)
+    # shrinks to nothing for a parameter near 0 (Δρ, the mount), below the phases' rounding
     result = least_squares(_residuals, x0, args=(free, start, data, observed, sigma, use), method="trf", loss=loss,
-                           f_scale=ROBUST_SCALE_SIGMA, x_scale=0.01, diff_step=1e-7, xtol=1e-12, ftol=1e-12,
-                           gtol=1e-12, max_nfev=500)
+                           f_scale=ROBUST_SCALE_SIGMA, x_scale=0.01, xtol=1e-12, ftol=1e-12, gtol=1e-12,
+                           max_nfev=500)
     values = start.vector()
     values[[PARAMETERS.index(n) for n in free]] = result.x
     return start.with_vector(values), result
@@ -707,7 +711,8 @@ def fit_horizon_bench(data: HorizonBenchData, *, start: HorizonSensorParameters 
     InsufficientDataError
         Fewer edges than parameters, or every pose alike.
     FitError
-        The least squares did not converge.
+        The least squares did not converge, or the plan does not determine the parameters (the scaled Jacobian's
+        condition number above :data:`CONDITION_LIMIT`); the message names the parameters it hardly separates.
 
     References
     ----------
@@ -750,6 +755,8 @@ def fit_horizon_bench(data: HorizonBenchData, *, start: HorizonSensorParameters 
         raise InsufficientDataError(f"the data do not constrain {', '.join(dead)}")
     singular = np.linalg.svd(jac / norms, compute_uv=False)
     condition = float(singular[0] / singular[-1]) if singular[-1] > 0 else float("inf")
+    if condition > CONDITION_LIMIT:
+        raise FitError("the horizon sensor's parameters are not determined; " + _weakest(free, jac))
     covariance = np.linalg.pinv(jac.T @ jac) * scale
     sd_values = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     correlation = covariance / np.outer(sd_values, sd_values)

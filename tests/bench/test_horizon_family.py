@@ -8,6 +8,8 @@ import math
 
 import numpy as np
 import pytest
+from horizontools import simulated_truth
+from scipy.spatial.transform import Rotation
 
 from bench.benchfile import load_bench_file
 from bench.campaign import Campaign, CampaignFileError, HorizonGridProcedure, load_campaign_file
@@ -17,6 +19,7 @@ from bench.families.horizon import (
     CHECK,
     DESCRIPTOR,
     GRID,
+    bench_data,
     body_direction_of,
     horizon_grid_plan,
     read,
@@ -26,9 +29,11 @@ from bench.messages import CloseShutter, LampOn, Measure, OpenShutter, SetDiscRa
 from bench.preflight import preflight_campaign
 from bench.runner import check_campaign, open_session, run_campaign
 from calibration.geometry import direction_vector
-from calibration.horizon.bench_fit import HorizonSensorParameters, mount_offsets_from_tilts
+from calibration.horizon.bench_fit import PARAMETERS, HorizonBenchData, fit_horizon_bench
 from calibration.horizon.scan import earth_angular_radius_deg, nadir_in_body
 from calibration.mount import ForkMount, fork_vectors
+from drivers.sim.bench import SimBench, SimBenchConfig
+from drivers.sim.raytrace import tilt_rotation
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples"
@@ -150,8 +155,6 @@ def test_a_reading_is_one_revolution_and_the_disc_radius_the_source_reports():
 
 def test_the_bench_data_turns_readings_into_rows_per_cone():
     from bench.descriptor import ReadingRecord
-    from bench.families.horizon import bench_data
-
     zenith, azimuth = body_direction_of(10.0, -5.0)
 
     def record(i, stage, saturated=0):
@@ -216,13 +219,11 @@ RUN_GRID = HorizonGridProcedure(roll_step_deg=16.5, pitch_step_deg=8.5, repeats=
 
 
 def test_a_horizon_campaign_is_recorded_fitted_and_recovers_the_simulated_sensor(tmp_path):
-    """The simulated sensor's own errors from a run: the phase offsets (the mirrors' azimuths, the bolometer's lag
-    360°·τ/T and the fixture's pitch folded in) and the mount's roll within 3σ (or 2 mdeg); the cone angles and the
-    threshold bias within 0.01° only — the module's locator takes its Earth level from the top quarter of the pulse's
-    range, which sinks as a chord shortens (≈ 0.3 % of the range at roll ±33°, ≈ 0.01° of apparent radius), and the
-    simulator's IFOV quadrature moves an edge by up to 3 mdeg with its orientation; neither is in the crossing model,
-    and both read as a cone angle (χ²/dof ≈ 1.7). The calibrated sensor reads the table's roll and pitch at the check
-    points to < 0.01° RMS, the nominal one to ≈ 0.1°."""
+    """Every parameter a bench can recover, from a simulated run, within 3σ of the simulated sensor's own build in the
+    fit's terms (horizontools.simulated_truth: the cone angles; the mirrors' azimuths with the bolometer's lag and the
+    fixture's pitch folded in; the comparator's offset as a disc-radius bias; the fixture's roll and yaw), and the
+    crossing model explains the scans to their noise (χ²/dof ≈ 1). The calibrated sensor reads the table's roll and
+    pitch at the check points to < 0.01° RMS, the nominal one to ≈ 0.1°."""
     bench = load_bench_file(EXAMPLES / "bench-sim-horizon.yaml")
     campaign = Campaign(name="h", plan="horizon-grid", sensors=("HZ-0001",), horizon_grid=RUN_GRID)
     with Catalogue(tmp_path / "c.sqlite") as catalogue:
@@ -245,24 +246,20 @@ def test_a_horizon_campaign_is_recorded_fitted_and_recovers_the_simulated_sensor
         doc = calibration["document"]
         assert calibration["chosen"] and calibration["method"] == "crossings" and doc["source"] == f"run {run_id}"
         fit_lines = [e["message"] for e in catalogue.events(run_id) if e["kind"] == "fit"]
-    roll, yaw, pitch = mount_offsets_from_tilts(*tilts)
-    delay = 360.0 * truth.time_constant_s  # 1 rev/s: the lag τ is a phase offset of both edges
-    expected = HorizonSensorParameters(
-        gamma1_deg=truth.gamma_deg[0], gamma2_deg=truth.gamma_deg[1],
-        phase_offset1_deg=-truth.phase_offset_deg[0] + delay, phase_offset2_deg=-truth.phase_offset_deg[1] + delay,
-        radius_bias_deg=-math.pi / 2 * truth.ifov_half_angle_deg * truth.threshold_offset,  # a top hat's edge
-        mount_roll_deg=roll, mount_yaw_deg=yaw, mount_pitch_deg=pitch).folded()
+        data, _ = bench_data(catalogue, [run_id])
+    fitted = ~data.check
+    poses = sorted({(float(r), float(p), float(q)) for r, p, q in
+                    zip(data.roll_deg[fitted], data.pitch_deg[fitted], data.disc_radius_deg[fitted])})
+    expected = simulated_truth(truth, tilts, poses)
+    assert doc["design"]["ifov_half_angle_deg"] == truth.ifov_half_angle_deg == 2.0
     p = doc["parameters"]
-    report = {n: (round(p[n]["value"], 5), round(p[n]["sd"], 5), round(getattr(expected, n), 5))
-              for n in ("gamma1_deg", "gamma2_deg", "phase_offset1_deg", "phase_offset2_deg", "radius_bias_deg",
-                        "mount_roll_deg", "mount_yaw_deg")}
-    print("\n" + "\n".join(f"{n}: {v} ± {s} (truth {t})" for n, (v, s, t) in report.items()))
-    for name in ("phase_offset1_deg", "phase_offset2_deg", "mount_roll_deg", "mount_yaw_deg"):
-        value, sd, want = report[name]
-        assert abs(value - want) <= max(3 * sd, 0.002), (name, report[name])
-    for name in ("gamma1_deg", "gamma2_deg", "radius_bias_deg"):
-        value, _, want = report[name]
-        assert abs(value - want) < 0.01, (name, report[name])
+    z = {n: (p[n]["value"] - getattr(expected, n)) / p[n]["sd"] for n in PARAMETERS}
+    print("\n" + "\n".join(f"{n}: {p[n]['value']:.6f} ± {p[n]['sd']:.6f} (truth {getattr(expected, n):.6f}, "
+                             f"{z[n]:+.2f} σ)" for n in PARAMETERS) + f"\nχ²/dof {doc['fit']['chi2_dof']:.3f}")
+    assert all(abs(v) < 3.0 for v in z.values()), z
+    # the stated 1σ are the noise's: a few tenths of a millidegree, and the model misses by no more than the noise
+    assert max(p[n]["sd"] for n in PARAMETERS) < 5e-4
+    assert 0.8 < doc["fit"]["chi2_dof"] < 1.25 and doc["fit"]["uncertainty_scale"] < 1.25
     check = doc["heldout"]["check"]
     assert check["calibrated"]["n_scans"] == 3 * 3 * 3
     assert check["calibrated"]["roll_rms_deg"] < 0.01 and check["calibrated"]["pitch_rms_deg"] < 0.01
@@ -270,3 +267,68 @@ def test_a_horizon_campaign_is_recorded_fitted_and_recovers_the_simulated_sensor
     assert check["nominal"]["pitch_rms_deg"] > 5 * check["calibrated"]["pitch_rms_deg"]
     assert len(doc["heldout"]["radius_out"]) == 3 and doc["fit"]["noise_source"] == "repeats"
     assert any("at the check points: roll RMS" in line for line in fit_lines), fit_lines
+
+
+# --- the stated uncertainty on simulated scans -----------------------------------------------------------------------
+
+COVERAGE_TILTS = (0.05, -0.04)  # the fixture's, as the example bench has it
+COVERAGE_DRAWS = 12
+
+
+def _simulated_clean_pulses(radii, rolls, pitches):
+    """The simulated sensor (the example's build) on a fixture tilted by COVERAGE_TILTS, its noise-free pulses at every
+    (roll, pitch, radius): the table's pose given to the simulator's optics directly (no engine, no wire)."""
+    bench = SimBench(SimBenchConfig(family="horizon", time_scale=0.0, seed=11,
+                                    geometry={"lever_arm_mm": 0.0, "source_distance_mm": 1000.0}))
+    sensor, earth = bench.devices["sensor"], bench.earth
+    earth.set_heater(True)
+    earth.move_cover(True)
+    earth.observe_heater()
+    earth.observe_cover()
+    tilt = tilt_rotation(*COVERAGE_TILTS)
+    clean = {}
+    for radius in radii:
+        earth.move_iris(radius)
+        earth.observe_iris()
+        for roll in rolls:
+            for pitch in pitches:
+                table = Rotation.from_euler("YX", [pitch, roll], degrees=True).as_matrix()
+                clean[(roll, pitch, radius)] = sensor.clean_signal(pose=(table @ tilt, np.zeros(3)))
+    return sensor, clean
+
+
+def _noisy_scans(sensor, clean, repeats) -> HorizonBenchData:
+    """`repeats` revolutions at every pose, each with its own detector noise, through the module's locator."""
+    n = sensor.config.samples_per_revolution
+    rows = []
+    for (roll, pitch, radius), pulses in clean.items():
+        for repeat in range(repeats):
+            revolution = sensor.revolution(pulses)
+            scan = len(rows) // 2
+            rows += [(roll, pitch, cone, e.out_index * 360.0 / n, e.in_index * 360.0 / n, radius, scan, repeat)
+                     for cone, e in zip((1, 2), revolution.edges)]
+    columns = list(zip(*rows))
+    return HorizonBenchData(*columns[:6], scan=columns[6], repeat=columns[7])
+
+
+def test_the_stated_uncertainty_covers_the_simulated_sensors_build_over_noise_draws():
+    """Twelve noise draws of a plan over the sensor's range (5 rolls × 3 pitches × 3 radii, 3 scans each) through the
+    simulator's optics and locator: each parameter's error against the simulated build (in the fit's terms) in units
+    of its stated 1σ has an RMS near 1 — within the scatter of 84 correlated samples — and χ²/dof stays near 1, so the
+    stated uncertainty is the noise's and nothing the model leaves out shows above it. (What it leaves out: the
+    bolometer's lag is a delay by τ only to first order; its third-order part moves an edge by 0.5 ± 0.2 mdeg with
+    the crossing's obliqueness, and over 48 draws that reads as γ −0.1 mdeg and Δρ +0.07 mdeg, ≤ 0.8 σ here.)"""
+    radii = tuple(float(r) for r in earth_angular_radius_deg([400.0, 500.0, 700.0]))
+    sensor, clean = _simulated_clean_pulses(radii, (-33.0, -16.5, 0.0, 16.5, 33.0), (-17.0, 0.0, 17.0))
+    expected = simulated_truth(sensor.truth, COVERAGE_TILTS, list(clean)).vector()
+    z, chi2 = [], []
+    for _ in range(COVERAGE_DRAWS):
+        fit = fit_horizon_bench(_noisy_scans(sensor, clean, repeats=3), heldout=False)
+        z.append((fit.parameters.vector() - expected) / np.array([fit.sd[n] for n in PARAMETERS]))
+        chi2.append(fit.chi2_dof)
+    z = np.array(z)
+    rms = float(np.sqrt(np.mean(z ** 2)))
+    print(f"\nz RMS {rms:.2f} (per parameter {np.sqrt(np.mean(z ** 2, axis=0)).round(2).tolist()}), "
+          f"{np.mean(np.abs(z) < 1):.0%} within 1σ, χ²/dof {min(chi2):.2f}…{max(chi2):.2f}")
+    assert 0.7 < rms < 1.35 and np.abs(z).max() < 3.5
+    assert 0.8 < min(chi2) and max(chi2) < 1.25

@@ -11,13 +11,17 @@ import time
 import numpy as np
 import pytest
 from framedtools import inject
+from scipy.integrate import dblquad, quad
 from scipy.optimize import brentq
+from scipy.spatial.transform import Rotation
 from scipy.stats import norm
 
+from calibration.horizon.ifov import covered_fraction_sphere, level_separation_deg
 from drivers import horizon_protocol as wire
 from drivers.errors import ChecksumError, DeviceTimeout
 from drivers.horizon_sensor import HorizonSensorModule, MotorStalled
 from drivers.sim.bench import SimBench, SimBenchConfig
+from drivers.sim.horizon_optics import cap_ifov_fraction, locate_edges
 from drivers.sim.horizon_sensor import HorizonSensorConfig, horizon_fleet_truth
 from drivers.transport import open_port
 
@@ -232,6 +236,95 @@ def test_the_pulse_shows_earth_space_and_the_threshold(horizon):
     assert (earth > 20000).all() and (space < 2200).all()
     assert pulse.threshold == pytest.approx(np.array(scan.level_space) + 0.518 * (np.array(scan.level_earth)
                                                                                  - np.array(scan.level_space)), abs=2)
+
+
+def _noise_free_edges(sensor, roll, pitch):
+    """Both cones' (out, in) phases [°] the module's locator finds on the noise-free, unquantised pulses with the
+    table turning the disc centre to n = (−sin θ, sin φ cos θ, cos φ cos θ) in the body (the pose given to the optics
+    directly: the wire's whole microseconds would hide a tenth of a millidegree)."""
+    rotation = Rotation.from_euler("YX", [pitch, roll], degrees=True).as_matrix()
+    clean = sensor.clean_signal(pose=(rotation, np.zeros(3)))
+    n = sensor.config.samples_per_revolution
+    level = sensor.threshold + sensor.truth.threshold_offset
+    found = [locate_edges(clean[k], level, min_contrast=500.0, full_scale=1e9,
+                          plateau_margin=sensor.plateau_margin_samples) for k in (0, 1)]
+    return [(e.out_index * 360.0 / n, e.in_index * 360.0 / n) for e in found]
+
+
+@pytest.mark.parametrize("horizon", [{"build": GEOMETRIC}], indirect=True)
+def test_an_edge_lies_where_half_the_ifov_covers_the_disc_whatever_its_orientation(horizon):
+    """Without noise, lag or comparator offset the locator's edges lie where half of the 2° top hat covers the disc —
+    the exact overlap of two caps (calibration.horizon.ifov, the seed 004 §2-4-2 obscuration) — within 0.2 mdeg for
+    crossings from square-on (zero attitude) to the most oblique of the sensor's range (roll ±33°, pitch ±17°, the
+    short chords included), at three disc radii."""
+    bench, sensor, _ = horizon
+    worst = 0.0
+    for radius in (64.304, 68.019, 70.218):
+        set_disc(bench, radius)
+        half = float(level_separation_deg(radius, 2.0, 0.5))
+        for roll, pitch in [(0, 0), (33, 17), (-33, -17), (33, -17), (-33, 0), (15, 8), (0, 17)]:
+            n = np.array([-math.sin(math.radians(pitch)), math.sin(math.radians(roll)) * math.cos(math.radians(pitch)),
+                          math.cos(math.radians(roll)) * math.cos(math.radians(pitch))])
+            got = _noise_free_edges(sensor, roll, pitch)
+            for k in (0, 1):
+                want = expected_phases(n, half, sensor.truth.gamma_deg[k], sensor.truth.phase_offset_deg[k], k + 1)
+                worst = max(worst, *np.abs(wrap(np.array(got[k]) - want)))
+    assert worst < 2e-4, worst
+
+
+def test_the_ifov_integral_matches_the_cap_overlap_and_a_gaussian_quadrature():
+    """The simulator's ring integral against the closed-form cap overlap (top hat) to 1e-10 of the IFOV across the
+    edge, and against scipy's dblquad over a Gaussian IFOV (half maximum at α, cut at 2.5 α) to 1e-8."""
+    separation = np.linspace(64.0, 72.0, 801)
+    for radius in (64.3, 68.0, 70.2):
+        exact = covered_fraction_sphere(separation, radius, 2.0)
+        assert np.abs(cap_ifov_fraction(separation, radius, 2.0) - exact).max() < 1e-10
+    alpha, reach, rho = math.radians(2.0), math.radians(5.0), math.radians(68.0)
+
+    def weight(r):
+        return math.exp(-math.log(2.0) * (r / alpha) ** 2) * math.sin(r)
+
+    total = quad(weight, 0.0, reach, epsabs=1e-14)[0]
+    for d_deg in (66.5, 67.9, 68.0, 69.3):
+        d = math.radians(d_deg)
+
+        def inside(phi, r, d=d):
+            return weight(r) * (math.cos(d) * math.cos(r) + math.sin(d) * math.sin(r) * math.cos(phi) >= math.cos(rho))
+
+        def ring(r, d=d):  # the azimuths of ring r inside the disc, in closed form: smooth apart from one kink
+            c = (math.cos(rho) - math.cos(d) * math.cos(r)) / (math.sin(d) * math.sin(r))
+            return weight(r) * math.acos(min(1.0, max(-1.0, c))) / math.pi
+
+        share = quad(ring, 0.0, reach, points=[abs(rho - d)], epsabs=1e-14, limit=200)[0] / total
+        brute = dblquad(inside, 0.0, reach, 0.0, 2.0 * math.pi, epsabs=1e-6)[0] / (2.0 * math.pi * total)
+        got = float(cap_ifov_fraction(d_deg, 68.0, 2.0, "gaussian"))
+        assert got == pytest.approx(share, abs=1e-8) and got == pytest.approx(brute, abs=2e-4)
+
+
+@pytest.mark.parametrize("horizon", [{"build": GEOMETRIC, "noise_counts": 0.0}], indirect=True)
+def test_the_locator_takes_its_levels_from_the_plateaus(horizon):
+    """Roll −33° at the smallest disc: cone 1's chord is 76° long, cone 2's 143°. The highest quarter of the short
+    pulse's range reaches down its shoulders and sits well below the disc's level; the module's Earth level is the
+    plateau's, the same for both cones (and the space level the shroud's pedestal), so the short chord's threshold —
+    and its edges — do not sink."""
+    bench, sensor, module = horizon
+    set_disc(bench, 64.304)
+    n = point(bench, 0, -33)  # the fork's altitude axis about lab x: the disc centre at body roll −33°
+    assert math.degrees(math.atan2(n[1], n[2])) == pytest.approx(-33.0, abs=0.01)
+    scan = module.read_scans(1)[0]
+    samples = sensor.last.samples
+    top_quarter = [samples[k][samples[k] >= samples[k].max() - (samples[k].max() - samples[k].min()) / 4].mean()
+                   for k in (0, 1)]
+    chords = [(scan.phase_out_deg[k] - scan.phase_in_deg[k]) % 360.0 for k in (0, 1)]
+    assert chords[0] == pytest.approx(76.3, abs=0.5) and chords[1] == pytest.approx(143.4, abs=0.5)
+    assert top_quarter[1] - top_quarter[0] > 20.0  # the rough level of the short chord sinks
+    assert abs(scan.level_earth[0] - scan.level_earth[1]) <= 1.0 and scan.level_earth[0] >= max(top_quarter)
+    assert scan.level_space == (2000.0, 2000.0)
+    half = float(level_separation_deg(64.304, 2.0, 0.5))
+    for k in (0, 1):
+        want = expected_phases(n, half, sensor.truth.gamma_deg[k], sensor.truth.phase_offset_deg[k], k + 1)
+        got = (scan.phase_out_deg[k], scan.phase_in_deg[k])
+        assert np.abs(wrap(np.array(got) - want)).max() < 5e-4  # the wire's whole µs: ±0.18 mdeg
 
 
 # -- faults -----------------------------------------------------------------------------------------------------

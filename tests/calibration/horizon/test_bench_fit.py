@@ -5,18 +5,27 @@ said in words; outliers named; the calibrated sensor's roll and pitch against th
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
-from horizontools import NOISE_DEG, RADII, RECOVERABLE, TRUTH, crossings, synthetic
+from horizontools import NOISE_DEG, RADII, RECOVERABLE, TRUTH, crossings, half_cover_separation, synthetic
 from scipy.spatial.transform import Rotation
 
-from calibration.errors import BenchDataError, FitError, InsufficientDataError
+from calibration.errors import BenchDataError, CalibrationFormatError, FitError, InsufficientDataError
+from calibration.horizon.bench_document import (
+    c_header,
+    horizon_document,
+    sensor_parameters_from_document,
+    validate_horizon_document,
+)
 from calibration.horizon.bench_fit import (
     NOMINAL,
     PARAMETERS,
     HorizonBenchData,
     attitude_errors,
     fit_horizon_bench,
+    model_disc_radius_deg,
     mount_offsets_from_tilts,
     predicted_phases,
     solve_roll_pitch,
@@ -212,3 +221,65 @@ def test_too_little_data_is_refused():
         fit_horizon_bench(one_pose)
     with pytest.raises(InsufficientDataError, match="check row"):
         fit_horizon_bench(one_pose.subset(np.zeros(len(one_pose), bool)))
+
+
+# --- the IFOV's curvature bias in the crossing model -----------------------------------------------------------------
+
+def test_the_model_fires_where_half_the_ifov_covers_the_disc():
+    """The crossing model's disc radius is ρ − b(ρ, α) + Δρ: b is 0.00472° at ρ = 67.9°, α = 2° (the 50 % locator on
+    a curved limb, seed 004 §2-4-2), ≈ cot ρ · α²/6, shrinking as the disc grows; α = 0 is the bare boresight."""
+    b = 67.9 - model_disc_radius_deg(67.9)
+    assert b == pytest.approx(0.00472, abs=1e-5)
+    radii = np.array(RADII)
+    small_ifov = np.degrees(1.0 / np.tan(np.radians(radii)) * np.radians(2.0) ** 2 / 6.0)
+    assert radii - model_disc_radius_deg(radii) == pytest.approx(small_ifov, rel=0.01)
+    ascending = np.sort(radii)
+    assert np.all(np.diff(ascending - model_disc_radius_deg(ascending)) < -5e-4)  # 5.6 → 4.2 mdeg over 64 → 70°
+    bare = replace(NOMINAL, ifov_half_angle_deg=0.0, radius_bias_deg=0.03)
+    assert np.all(model_disc_radius_deg(radii, bare) == radii + 0.03)
+    # Δρ adds on top; the 50 % separation as horizontools finds it (scipy's quad over rings, brentq)
+    assert model_disc_radius_deg(68.0, replace(NOMINAL, radius_bias_deg=0.03)) == pytest.approx(
+        half_cover_separation(68.0, 2.0) + 0.03, abs=1e-10)
+
+
+def test_without_the_curvature_bias_the_threshold_bias_is_wrong_and_the_model_misses():
+    """Scans of a 2° IFOV at three disc radii with 0.5 mdeg of noise. Fitted with the bare boresight model (α = 0),
+    Δρ takes the curvature bias's mean (≈ −4.8 mdeg, hundreds of σ: it is no longer the threshold's bias) and the
+    bias's change with ρ (5.6 mdeg at 64.3°, 4.2 at 70.2°), which no parameter takes up, leaves χ²/dof ≈ 3; with
+    the design's α every parameter comes back within its 1σ's few and χ²/dof ≈ 1. (The cone angles move by only
+    ~0.2 mdeg: over this plan the bias trades with Δρ, hardly with γ.)"""
+    data = synthetic(noise=0.0005, repeats=3, seed=21)
+    right = fit_horizon_bench(data, heldout=False)
+    wrong = fit_horizon_bench(replace(data, ifov_half_angle_deg=0.0), heldout=False)
+    sd = np.array([right.sd[n] for n in PARAMETERS])
+    assert np.all(np.abs((right.parameters.vector() - RECOVERABLE.vector()) / sd) < 3.5) and right.chi2_dof < 1.25
+    bias = float(np.mean(np.array(RADII) - model_disc_radius_deg(np.array(RADII))))
+    missed = wrong.parameters.radius_bias_deg - RECOVERABLE.radius_bias_deg
+    print(f"\nα = 0: Δρ off by {missed * 1000:+.2f} mdeg ({missed / wrong.sd['radius_bias_deg']:+.0f} σ), χ²/dof "
+          f"{wrong.chi2_dof:.2f} (α = 2°: {right.chi2_dof:.2f})")
+    assert missed == pytest.approx(-bias, abs=3e-4) and abs(missed) > 50 * wrong.sd["radius_bias_deg"]
+    assert wrong.chi2_dof > 2.0
+    assert wrong.parameters.ifov_half_angle_deg == 0.0 and right.parameters.ifov_half_angle_deg == 2.0
+
+
+def test_the_document_carries_the_ifov_and_reads_it_back(fit):
+    doc = horizon_document(fit)
+    assert doc["design"] == {"ifov_half_angle_deg": 2.0, "locator_level": 0.5}
+    assert "b(ρ, α)" in doc["model"]["crossing"] and "seed 004 §2-4-2" in doc["model"]["ifov"]
+    back = sensor_parameters_from_document(doc)
+    assert back == fit.parameters.folded() or back == fit.parameters
+    assert "#define SUNBENCH_HORIZON_IFOV_HALF_ANGLE_DEG (2)" in c_header(doc)
+    old = {k: v for k, v in doc.items() if k != "design"}  # fitted before the model had the bias: α = 0
+    assert sensor_parameters_from_document(old).ifov_half_angle_deg == 0.0
+    for design, words in (({"ifov_half_angle_deg": -1.0}, "not in \\[0, 10\\)"),
+                          ({"ifov_half_angle_deg": None}, "finite number"),
+                          ({"ifov_half_angle_deg": 2.0, "locator_level": 0.7}, "locator level")):
+        with pytest.raises(CalibrationFormatError, match=words):
+            validate_horizon_document({**doc, "design": design})
+
+
+@pytest.mark.parametrize("alpha", [-0.5, 12.0, float("nan"), "2"])
+def test_a_bad_ifov_half_angle_is_refused(alpha):
+    with pytest.raises(BenchDataError) as info:
+        HorizonBenchData([0.0], [0.0], [1], [66.0], [294.0], [68.0], ifov_half_angle_deg=alpha)
+    assert info.value.column == "ifov_half_angle_deg"
