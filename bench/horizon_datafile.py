@@ -35,6 +35,7 @@ from .datafile import (
     CsvTable,
     DataFileError,
     flag_column,
+    header_numbers,
     load_calibration_json,
     read_csv_table,
     refuse_rows,
@@ -46,6 +47,9 @@ from .datafile import (
 POSE_COLUMNS = ("roll_deg", "pitch_deg")
 TIME_COLUMNS = ("t_out_s", "t_in_s", "period_s")
 PHASE_COLUMNS = ("phase_out_deg", "phase_in_deg")
+#: ``# key: value`` header comments: the sensor's design (the IFOV half-angle α whose limb-curvature bias the fit's
+#: crossing model carries, :func:`calibration.horizon.bench_fit.model_disc_radius_deg`; without it the design's 2°)
+DESIGN_KEYS = ("ifov_half_angle_deg",)
 #: A revolution's period a file may hold [s]: seed 004's sensor turns once a second; more is a file in ms.
 MAX_PERIOD_S = 60.0
 #: Largest file read [bytes].
@@ -197,9 +201,11 @@ def read_horizon_frames(path, *, sensor_id: str | None = None) -> HorizonFrames:
     else:
         scan = _pair_scans(roll, pitch, radius, repeat, check, cone)
     row_id = np.arange(1, len(table.rows) + 1)
+    design = header_numbers(table, DESIGN_KEYS)
     try:
         data = HorizonBenchData(roll, pitch, cone.astype(int), phase_out, phase_in, radius, scan=scan, repeat=repeat,
-                                check=check, sensor_id=sensor_id, row_id=row_id)
+                                check=check, sensor_id=sensor_id, row_id=row_id,
+                                ifov_half_angle_deg=design.get("ifov_half_angle_deg"))
     except BenchDataError as exc:  # what the checks above did not catch (a scan with two rows of one cone)
         row = None if exc.row is None else exc.row + 1
         raise DataFileError(table.path, str(exc), row=row, line=None if row is None else table.lines[row - 1],
@@ -228,6 +234,8 @@ def write_horizon_csv(path, data: HorizonBenchData, *, temperature_c=None) -> No
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with path.open("w", newline="") as fh:
+        if data.ifov_half_angle_deg is not None:
+            fh.write(f"# ifov_half_angle_deg: {data.ifov_half_angle_deg!r}\n")
         w = csv.writer(fh)
         w.writerow([*POSE_COLUMNS, "cone", *PHASE_COLUMNS, "disc_radius_deg", "scan", "repeat", "check"]
                    + (["temperature_c"] if temperature_c is not None else [])

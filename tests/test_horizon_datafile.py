@@ -123,3 +123,24 @@ def test_two_rows_of_one_cone_in_one_scan_are_refused(tmp_path):
     with pytest.raises(DataFileError) as info:
         read_horizon_csv(path)
     assert "scan 4 has two rows of cone 1" in str(info.value) and (info.value.row, info.value.line) == (3, 4)
+
+
+def test_the_ifov_half_angle_travels_in_a_header_comment(tmp_path, data):
+    """The design's IFOV half-angle α (whose limb-curvature bias the fit models) is written as ``# ifov_half_angle_deg:
+    …`` and read back; without it the data carries none (the fit then takes the design's 2°); an unknown comment or an α
+    out of range is refused, naming the line or the value."""
+    from dataclasses import replace
+
+    path = tmp_path / "hz.csv"
+    write_horizon_csv(path, replace(data, ifov_half_angle_deg=1.5))
+    assert path.read_text().startswith("# ifov_half_angle_deg: 1.5\n")
+    assert read_horizon_csv(path).ifov_half_angle_deg == 1.5
+    write_horizon_csv(path, data)
+    assert read_horizon_csv(path).ifov_half_angle_deg is None
+    body = path.read_text()
+    path.write_text("# ifov_deg: 2\n" + body)
+    with pytest.raises(DataFileError, match="unknown header comment 'ifov_deg'.*ifov_half_angle_deg"):
+        read_horizon_csv(path)
+    path.write_text("# ifov_half_angle_deg: 45\n" + body)
+    with pytest.raises(DataFileError, match="IFOV half-angle"):
+        read_horizon_csv(path)
