@@ -139,7 +139,7 @@ class PreflightReport:
 
 
 def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_reading=None,
-              exposure_ms: float = 4.0, extra_violations=()) -> PreflightReport:
+              exposure_ms: float = 4.0, extra_violations=(), reading_s: float | None = None) -> PreflightReport:
     """Expand `plan` with a dry executor.
 
     Parameters
@@ -155,6 +155,9 @@ def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_rea
         Exposure assumed until the plan sets one [ms].
     extra_violations : iterable of str
         Refusals found elsewhere (alignment) to report with the limit violations.
+    reading_s : float, optional
+        How long one reading takes [s] (the family's :attr:`~bench.families.Family.reading_s`: a scanning sensor's
+        revolution); default the exposure plus the frame overhead.
     """
     points: list[Point] = []
     violations = list(extra_violations)
@@ -180,7 +183,7 @@ def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_rea
     def frames(n):
         nonlocal n_frames, duration
         n_frames += n
-        duration += n * (exposure / 1000.0 + timing.frame_overhead_s)
+        duration += n * (reading_s if reading_s is not None else exposure / 1000.0 + timing.frame_overhead_s)
         return [dry_reading(i) if dry_reading is not None else Reading(i, "ok") for i in range(n)]
 
     warmup = 0.0
@@ -227,4 +230,5 @@ def preflight_campaign(campaign, *, check, timing: TimingModel = TimingModel(), 
 
     family = family_of_plan(campaign.plan)
     return preflight(family.make_plan(campaign, timing=timing, mount=mount), check=check, timing=timing,
-                     dry_reading=lambda i: family.dry_reading(i, campaign), extra_violations=extra_violations)
+                     dry_reading=lambda i: family.dry_reading(i, campaign), extra_violations=extra_violations,
+                     reading_s=family.reading_s)

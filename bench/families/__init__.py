@@ -64,6 +64,9 @@ class Family:
     reads_source : bool
         Its `read` takes the bench's source too, ``read(sensor, repeat, clock, source=…)``, to record what the source
         set with each reading (the Earth simulator's disc radius).
+    reading_s : float or None
+        How long one reading takes on the bench [s], for preflight's estimate; None: an image sensor's, the exposure
+        plus the read-out (:attr:`bench.preflight.TimingModel.frame_overhead_s`).
     """
 
     name: str
@@ -83,6 +86,7 @@ class Family:
     sensor_kinds: tuple[str, ...] = ()
     has_exposure: bool = False
     reads_source: bool = False
+    reading_s: float | None = None
 
 
 _FAMILIES: dict[str, Family] = {}

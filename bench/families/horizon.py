@@ -72,6 +72,10 @@ def read(sensor, repeat: int, clock, source=None) -> Reading:
     return Reading(repeat, "ok" if ok else "no_edges" if not edges else "no_disc_radius", t, values)
 
 
+#: One reading on the bench [s]: a revolution at the design's 1 rev/s (seed 004 §3-5) after waiting, on average, half a
+#: revolution for the index mark (each reading asks for the next complete revolution)
+READING_S = 1.5
+
 #: Preflight's answer: the design sensor (γ = 70°, 1 rev/s) at zero roll and pitch before a 68° disc
 _DRY_T_OUT, _DRY_T_IN = 0.18451, 0.81549
 
@@ -262,7 +266,7 @@ FAMILY = register(Family(
     name="horizon", title="Scanning Earth-horizon sensor (seed 004)", descriptor=DESCRIPTOR, plans=("horizon-grid",),
     read=read, dry_reading=dry_reading, summary=summary, status=status, make_plan=make_plan, fit_run=fit_run,
     fit_inputs=fit_inputs, results_view="horizon", export_csv=export_csv, c_header=c_header,
-    sensor_kinds=("horizon",), reads_source=True))
+    sensor_kinds=("horizon",), reads_source=True, reading_s=READING_S))
 
 __all__ = ["FAMILY", "DESCRIPTOR", "GRID", "CHECK", "METHOD", "bench_data", "body_direction_of", "grid_points",
            "horizon_grid_plan", "read", "roll_pitch_of_direction"]

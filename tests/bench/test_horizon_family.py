@@ -119,6 +119,8 @@ def test_the_family_is_registered_and_its_methods_are_known():
         Campaign(name="x", plan="horizon-grid", methods=("kelly",))
     report = preflight_campaign(Campaign(name="x", plan="horizon-grid", horizon_grid=SMALL), check=lambda a, z: None)
     assert len(report.points) == 36 and report.ok
+    # preflight's estimate counts a revolution and the wait for its index mark per reading, not an exposure
+    assert f.reading_s == 1.5 and report.duration_s - report.warmup_s > report.n_frames * f.reading_s
 
 
 # --- one reading -----------------------------------------------------------------------------------------------------
