@@ -33,7 +33,16 @@ from .camera_datafile import (
     read_camera_calibration,
     read_camera_frames,
 )
-from .cli_common import err, fmt, metrics_table, out, qd_metrics_table, user_errors
+from .cli_common import (
+    err,
+    fmt,
+    horizon_accuracy_table,
+    horizon_parameters_table,
+    metrics_table,
+    out,
+    qd_metrics_table,
+    user_errors,
+)
 from .css_datafile import css_header_from_document, is_css_document, read_css_calibration
 from .datafile import (
     DataFileError,
@@ -557,53 +566,6 @@ def fit_css_command(
                    "diodes": document["diodes"], "warnings": document["warnings"], "rejected": document["rejected"]}
         _write_text(json_out, json.dumps(figures, indent=2) + "\n")
         out.print(f"figures written to {escape(str(json_out))}")
-
-
-def horizon_parameters_table(document: dict) -> Table:
-    """A horizon calibration's parameters ± 1σ beside the design's (seed 004 §3-5: γ = 70°), the mount's pitch marked
-    as folded into the phase offsets."""
-    table = Table(title="Horizon sensor: S_k(δ − o_k)·n_b = cos(ρ + Δρ), n_b = Mᵀ n_table; each fitted parameter ± 1σ",
-                  title_justify="left")
-    for name in ("parameter", "value [°]", "± 1σ [°]", "nominal [°]"):
-        table.add_column(name, justify="left" if name == "parameter" else "right")
-    for name, entry in document["parameters"].items():
-        sd = entry.get("sd")
-        note = "" if entry.get("fitted") else " (not fitted)" if name != "mount_pitch_deg" else \
-            " (folded into the offsets)"
-        table.add_row(name + note, f"{entry['value']:.5f}", "—" if sd is None else f"{sd:.5f}",
-                      f"{entry['nominal']:g}")
-    return table
-
-
-def horizon_accuracy_table(heldout: dict | None) -> Table:
-    """Roll and pitch the calibrated sensor reports against the table's [°]: at the check points (never fitted), with
-    each disc radius left out (refitted without it) and at the fitted scans; the nominal sensor beside them."""
-    table = Table(title="Roll and pitch against the table [°] (the sensor's crossings solved with the calibration)",
-                  title_justify="left")
-    for name in ("scored", "scans", "roll RMS", "roll max", "pitch RMS", "pitch max", "phase RMS / σ"):
-        table.add_column(name, justify="left" if name == "scored" else "right")
-    heldout = heldout or {}
-
-    def row(label, entry, scores=None):
-        if not entry or not entry.get("n_scans"):
-            table.add_row(label, *["—"] * 6)
-            return
-        sigma = (scores or {}).get("phase_rms_sigma")
-        table.add_row(label, str(entry["n_scans"]), f"{entry['roll_rms_deg']:.4f}", f"{entry['roll_max_deg']:.4f}",
-                      f"{entry['pitch_rms_deg']:.4f}", f"{entry['pitch_max_deg']:.4f}",
-                      "—" if sigma is None else f"{sigma:.2f}")
-
-    check = heldout.get("check")
-    row("check points *", (check or {}).get("calibrated"), check)
-    row("check points, nominal sensor", (check or {}).get("nominal"))
-    for entry in heldout.get("radius_out", []):
-        row(f"ρ {entry['disc_radius_deg']:.3f}° left out", entry.get("calibrated"), entry)
-    nodes = heldout.get("at_nodes")
-    row("fitted scans", (nodes or {}).get("calibrated"), nodes)
-    row("fitted scans, nominal sensor", (nodes or {}).get("nominal"))
-    table.caption = "* = the calibration's held-out figure (check points never fitted)"
-    table.caption_justify = "left"
-    return table
 
 
 @fit_app.command("horizon")

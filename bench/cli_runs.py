@@ -23,6 +23,8 @@ from .cli_common import (
     TimeScaleOption,
     err,
     fmt,
+    horizon_accuracy_table,
+    horizon_parameters_table,
     metrics_table,
     open_catalogue,
     out,
@@ -258,6 +260,9 @@ def show_run(run_id: int = typer.Argument(..., min=1, max=MAX_ID), catalogue: Op
         if run.get("family") == "css":
             _show_css_calibrations(cat, run_id)
             return
+        if run.get("family") == "horizon":
+            _show_horizon_calibration(cat, run_id)
+            return
         reports, chosen, document = [], None, {}
         metrics = lambda m, key: AccuracyMetrics(**m[key]) if m.get(key) else None  # noqa: E731
         for c in cat.calibrations(run_id):
@@ -316,6 +321,24 @@ def _show_camera_calibrations(cat, run_id: int) -> None:
                           f"{num(scheme.get('max_deg'), 4)}° over {scheme.get('n_points')} spots", highlight=False)
         for warning in document.get("warnings") or []:
             out.print(f"[bold yellow]warning:[/] {escape(warning)}", highlight=False, soft_wrap=True)
+
+
+def _show_horizon_calibration(cat, run_id: int) -> None:
+    """A horizon run's calibration: the sensor's own errors ± 1σ, roll and pitch held out (check points, each disc
+    radius left out) beside the nominal sensor's, its rejected edges and warnings."""
+    for c in cat.calibrations(run_id):
+        document = c["document"]
+        if not c["chosen"] or not document:
+            continue
+        fit = document.get("fit") or {}
+        out.print(horizon_parameters_table(document))
+        out.print(f"χ²/dof {fmt(fit.get('chi2_dof', float('nan')), 2)} against the repeat scatter; phase residual RMS "
+                  f"{fmt(fit.get('rms_deg', float('nan')), 4)}° over {fit.get('n_edges')} edges", highlight=False)
+        out.print(horizon_accuracy_table(document.get("heldout")))
+        for r in document.get("rejected") or []:
+            out.print(f"rejected: {escape(json.dumps(r))}", highlight=False, soft_wrap=True)
+        for warning in document.get("warnings") or []:
+            out.print(f"[yellow]warning:[/] {escape(warning)}")
 
 
 def _show_css_calibrations(cat, run_id: int) -> None:

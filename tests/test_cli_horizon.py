@@ -161,3 +161,27 @@ def test_the_console_script_refuses_bad_input_without_a_traceback(tmp_path):
     done = sunbench_process("fit", "horizon", path, cwd=tmp_path)
     assert_user_error_text(done.stderr, done.returncode, "row 1 (line 2)", "column 'pitch_deg'", "not a finite number")
     assert done.stdout == ""
+
+
+def test_a_horizon_run_is_shown_and_exported_from_the_command_line(tmp_path):
+    """`sunbench run` of a small horizon-grid campaign on the example bench (time scale 0), then `show` prints the
+    sensor's errors ± 1σ and roll/pitch held out, and `export` writes the CSV `fit horizon` reads."""
+    root = Path(__file__).resolve().parents[1]
+    campaign = tmp_path / "small.yaml"
+    campaign.write_text("name: small\nplan: horizon-grid\nsensors: [HZ-0001]\nhorizon_grid:\n"
+                        "  altitudes_km: [400, 700]\n  roll_range_deg: 30\n  roll_step_deg: 15\n"
+                        "  pitch_range_deg: 15\n  pitch_step_deg: 15\n  repeats: 2\n  check_points: 2\n")
+    db = tmp_path / "c.sqlite"
+    run = sunbench_process("run", campaign, "--bench", root / "examples" / "bench-sim-horizon.yaml", "--time-scale", 0,
+                           "--catalogue", db, cwd=tmp_path, timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    shown = sunbench_process("show", "1", "--catalogue", db, cwd=tmp_path)
+    assert shown.returncode == 0 and "Traceback" not in shown.stdout + shown.stderr, shown.stdout + shown.stderr
+    text = flat(shown.stdout)
+    names = ["gamma1_deg", "gamma2_deg", "phase_offset1_deg", "phase_offset2_deg", "radius_bias_deg", "mount_roll_deg"]
+    assert [text.index(n) for n in names] == sorted(text.index(n) for n in names)  # the document's order
+    assert "check points *" in text and "nominal sensor" in text and "χ²/dof" in text
+    exported = sunbench_process("export", "1", "-o", tmp_path / "hz.csv", "--catalogue", db, cwd=tmp_path)
+    assert exported.returncode == 0, exported.stderr
+    fitted = invoke("fit", "horizon", tmp_path / "hz.csv")
+    assert fitted.exit_code == 0 and "gamma1_deg" in flat(fitted.output), fitted.output
