@@ -812,7 +812,10 @@ CLIENT_HINTS: dict[str, tuple[tuple[str, str], ...]] = {
     "earth": (("PyVISA", 'TCPIP0::{host}::{port}::SOCKET, read and write termination "\\n" (SCPI-style: *IDN?, '
                          'IRIS 66.5, HEAT ON, COV OPEN, STAT?)'),
               ("sunbench", 'EarthSimulatorSource(open_port("{url}"))'),),
-    "sensor": (("sunbench", 'CmosSunSensor(open_port("{url}"))'),),
+    "sensor-cmos": (("sunbench", 'CmosSunSensor(open_port("{url}"))'),),
+    "sensor-qd": (("sunbench", 'QdSunSensor(open_port("{url}"))'),),
+    "sensor-css": (("sunbench", 'CssHead(open_port("{url}"))'),),
+    "sensor-horizon": (("sunbench", 'HorizonSensorModule(open_port("{url}"))'),),
 }
 
 
@@ -906,7 +909,7 @@ def serve_simulators(
             path = bridges[role].path if role in bridges else None
             if path:
                 print(f"{'':15s}pty: {path}", flush=True)
-            kind = sim.table if role.startswith("table") else role
+            kind = sim.table if role.startswith("table") else f"sensor-{sim.family}" if role == "sensor" else role
             for line in client_hints(kind, url, path):
                 print(f"{'':15s}{line}", flush=True)
         if bench.camera is not None:

@@ -463,12 +463,27 @@ def fleet_command(campaign_id: int = typer.Argument(..., min=1, max=MAX_ID),
     with open_catalogue(catalogue, readonly=True) as cat:
         campaign = cat.campaign(campaign_id)
         table = Table(title=f"Campaign {campaign_id} ({escape(campaign['name'])}): accuracy held out [°]")
-        for name in ("No.", "sensor", "status", "run", "method", "RMS zenith", "RMS azimuth", "RMS vector"):
+        for name in ("No.", "sensor", "status", "run", "method", "RMS zenith", "RMS azimuth", "RMS vector",
+                     "held out, other families"):
             table.add_column(name, justify="right" if name.startswith("RMS") else "left")
         for i, row in enumerate(cat.fleet(campaign_id), 1):
-            h = ((row.get("metrics") or {}).get("heldout")) or {}
+            metrics = row.get("metrics") or {}
+            h = metrics.get("heldout") or {}
             table.add_row(str(i), row["sensor_id"], row["status"], str(row.get("run_id") or ""),
                           row.get("method") or "",
                           fmt(h.get("rms_zenith_deg", float("nan"))), fmt(h.get("rms_azimuth_deg", float("nan"))),
-                          fmt(h.get("rms_vector_deg", float("nan"))))
+                          fmt(h.get("rms_vector_deg", float("nan"))), _fleet_other_figures(metrics))
         out.print(table)
+
+
+def _fleet_other_figures(metrics: dict) -> str:
+    """A fleet row's held-out figure for a family whose reading is no direction in the body frame: a horizon
+    sensor's roll and pitch at the check points, a CSS head's Sun direction held out."""
+    calibrated = (metrics.get("check") or {}).get("calibrated") if isinstance(metrics.get("check"), dict) else None
+    if calibrated and calibrated.get("n_scans"):
+        return (f"check points: roll RMS {fmt(calibrated['roll_rms_deg'], 4)}°, pitch RMS "
+                f"{fmt(calibrated['pitch_rms_deg'], 4)}°")
+    sun = metrics.get("held_out") or {}
+    if sun.get("n_points") and sun.get("rms_deg") is not None:
+        return f"the Sun's direction: RMS {fmt(sun['rms_deg'], 4)}°"
+    return ""

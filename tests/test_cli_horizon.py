@@ -185,3 +185,39 @@ def test_a_horizon_run_is_shown_and_exported_from_the_command_line(tmp_path):
     assert exported.returncode == 0, exported.stderr
     fitted = invoke("fit", "horizon", tmp_path / "hz.csv")
     assert fitted.exit_code == 0 and "gamma1_deg" in flat(fitted.output), fitted.output
+
+
+def test_sim_serves_the_horizon_bench_and_its_drivers_talk_to_it_over_tcp(tmp_path):
+    """`sunbench sim --config examples/bench-sim-horizon.yaml`: the fork, the Earth simulator and the horizon sensor on
+    TCP, each with how to connect (the sensor's own driver named, not another family's); the Earth simulator's driver
+    heats the disc and sets the iris, and the sensor's driver reads a revolution with both cones' edges."""
+    import signal
+
+    from clitools import ENV, SUNBENCH, read_sim_listing
+
+    from drivers.earth_simulator import EarthSimulatorSource
+    from drivers.horizon_sensor import HorizonSensorModule
+    from drivers.transport import open_port
+
+    root = Path(__file__).resolve().parents[1]
+    proc = subprocess.Popen([str(SUNBENCH), "sim", "--config", str(root / "examples" / "bench-sim-horizon.yaml"),
+                             "--time-scale", "0", "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=ENV, cwd=tmp_path, stdin=subprocess.DEVNULL)
+    try:
+        urls, hints = read_sim_listing(proc.stdout)
+        assert set(urls) == {"table", "earth", "sensor"}, (urls, proc.stderr.read())
+        assert any("HorizonSensorModule(" in h for h in hints["sensor"]), hints["sensor"]
+        assert any("EarthSimulatorSource(" in h for h in hints["earth"]), hints["earth"]
+        earth = EarthSimulatorSource(open_port(urls["earth"], timeout_s=2.0))
+        earth.lamp_on()
+        earth.open_shutter()
+        earth.set_disc_radius_deg(68.0)
+        assert abs(earth.disc_radius_deg() - 68.0) < 0.02
+        sensor = HorizonSensorModule(open_port(urls["sensor"], timeout_s=5.0))
+        (scan,) = sensor.read_scans(1)
+        assert all(scan.valid) and 0.9 < scan.period_s < 1.1, scan
+        earth.standby()
+        assert not earth.status().shutter_open
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=20)
