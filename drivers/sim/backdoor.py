@@ -23,11 +23,14 @@ class BenchFaults:
         The bench's shared truth.
     normal_temperature_c : float
         The sensor's temperature without a fault [°C] (the bench's configured one).
+    earth : EarthSimulatorModel, optional
+        The IR Earth simulator of a horizon bench: its heater is the bench's "lamp" (the source the engine lights).
     """
 
-    def __init__(self, world: SimWorld, *, normal_temperature_c: float):
+    def __init__(self, world: SimWorld, *, normal_temperature_c: float, earth=None):
         self._world = world
         self._normal_temperature_c = normal_temperature_c
+        self._earth = earth
 
     # -- the enclosure ----------------------------------------------------------------------------------
     def open_enclosure(self) -> None:
@@ -39,10 +42,16 @@ class BenchFaults:
 
     # -- the lamp ---------------------------------------------------------------------------------------
     def lamp_fault(self) -> None:
-        """The arc (or the LED string) goes out and the supply flags a fault."""
-        self._world.lamp.inject_fault()
+        """The arc (or the LED string) goes out and the supply flags a fault; on a horizon bench the Earth simulator's
+        heater trips."""
+        if self._earth is not None:
+            self._earth.heater_fault()
+        else:
+            self._world.lamp.inject_fault()
 
     def clear_lamp_fault(self) -> None:
+        if self._earth is not None:
+            self._earth.clear_faults()
         self._world.lamp.clear_fault()
 
     def open_lamp_interlock(self) -> None:

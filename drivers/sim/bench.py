@@ -261,7 +261,7 @@ class SimBench:
     def faults(self) -> BenchFaults:
         """The back door: faults no wire protocol can cause, and named set-ups
         (:class:`drivers.sim.backdoor.BenchFaults`)."""
-        return BenchFaults(self.world, normal_temperature_c=self.config.temperature_c)
+        return BenchFaults(self.world, normal_temperature_c=self.config.temperature_c, earth=self.earth)
 
     def setup(self, name: str) -> None:
         """Put the bench in a named set-up (:data:`drivers.sim.backdoor.SETUPS`: ``normal``, ``lamp_fault`` …)."""

@@ -63,3 +63,14 @@ def test_named_setups_do_what_they_say():
     assert bench.world.azimuth.stalled
     with pytest.raises(ValueError, match="unknown set-up"):
         bench.setup("meteor_strike")
+
+
+def test_a_lamp_fault_on_a_horizon_bench_trips_the_earth_simulators_heater():
+    """On a horizon bench the source the engine lights is the IR Earth simulator: the bench's lamp fault trips its
+    heater (the controller then reports the fault), and clearing the faults lets it heat again."""
+    bench = SimBench(SimBenchConfig(time_scale=0.0, family="horizon"))
+    bench.earth.set_heater(True)
+    bench.setup("lamp_fault")
+    assert bench.earth.heater_faulted and not bench.earth.heater_on
+    bench.setup("normal")
+    assert not bench.earth.heater_faulted and bench.earth.set_heater(True) and bench.earth.heater_on
