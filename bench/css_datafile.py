@@ -34,9 +34,10 @@ from .datafile import (
     DataFileError,
     flag_column,
     load_calibration_json,
-    read_csv_table,
+    read_bench_table,
     refuse_rows,
     require_columns,
+    row_place,
     sensor_rows,
     temperature_column,
 )
@@ -73,21 +74,7 @@ class CssFrames:
 
     def where(self, row: int) -> str:
         """``row N (line L)`` of a data row, as error messages say it."""
-        line = self.lines.get(int(row))
-        return f"row {row}" + (f" (line {line})" if line is not None else "")
-
-
-def _read_table(path) -> CsvTable:
-    """The CSV table, refusing a file too large to be bench data before reading it."""
-    path = Path(path)
-    try:
-        size = path.stat().st_size if path.is_file() else 0
-    except OSError:
-        size = 0  # read_csv_table says what is wrong with it
-    if size > MAX_FILE_BYTES:
-        raise DataFileError(path, f"{size / 2**20:.0f} MiB is too large for bench data (at most "
-                                  f"{MAX_FILE_BYTES // 2**20} MiB); split it by sensor or by run")
-    return read_csv_table(path)
+        return row_place(self.lines, row)
 
 
 def channel_columns(table: CsvTable) -> list[str]:
@@ -176,7 +163,7 @@ def read_css_frames(path, *, sensor_id: str | None = None) -> CssFrames:
     DataFileError
         Naming the file, and where it can the row, its line and the column.
     """
-    table = _read_table(path)
+    table = read_bench_table(path, MAX_FILE_BYTES)
     _hint_other_family(table)
     columns = channel_columns(table)
     require_columns(table, TRUE_COLUMNS + ("temperature_c",))
@@ -413,7 +400,7 @@ def read_css_readings(path) -> CssReadings:
     """A CSV with at least one detector column and `temperature_c`; `zenith_deg, azimuth_deg` (the truth, cells may
     be empty) and `dark` are used when present. Bad cells raise :class:`DataFileError` as in
     :func:`read_css_frames`."""
-    table = _read_table(path)
+    table = read_bench_table(path, MAX_FILE_BYTES)
     _hint_other_family(table)
     columns = channel_columns(table)
     require_columns(table, ("temperature_c",))

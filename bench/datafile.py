@@ -102,6 +102,25 @@ class CsvTable:
         return [row[j].strip() for row in self.rows]
 
 
+def read_bench_table(path, max_bytes: int) -> CsvTable:
+    """:func:`read_csv_table` of a bench data file, refusing one larger than `max_bytes` before reading it."""
+    path = Path(path)
+    try:
+        size = path.stat().st_size if path.is_file() else 0
+    except OSError:
+        size = 0  # read_csv_table says what is wrong with it
+    if size > max_bytes:
+        raise DataFileError(path, f"{size / 2**20:.0f} MiB is too large for bench data (at most "
+                                  f"{max_bytes // 2**20} MiB); split it by sensor or by run")
+    return read_csv_table(path)
+
+
+def row_place(lines: dict, row: int) -> str:
+    """``row N (line L)`` of a data row, as error messages say it (`lines`: data row → the file's line)."""
+    line = lines.get(int(row))
+    return f"row {row}" + (f" (line {line})" if line is not None else "")
+
+
 def read_csv_table(path, *, text: str | None = None) -> CsvTable:
     """Read a CSV with a header row; blank lines and lines starting with ``#`` are skipped. With `text`, that is
     the file's content (an upload) and `path` only names it in errors."""

@@ -37,9 +37,11 @@ from .datafile import (
     flag_column,
     header_numbers,
     load_calibration_json,
+    read_bench_table,
     read_csv_table,
     refuse_rows,
     require_columns,
+    row_place,
     sensor_rows,
     temperature_column,
 )
@@ -77,21 +79,7 @@ class HorizonFrames:
 
     def where(self, row: int) -> str:
         """``row N (line L)`` of a data row, as error messages say it."""
-        line = self.lines.get(int(row))
-        return f"row {row}" + (f" (line {line})" if line is not None else "")
-
-
-def _read_table(path) -> CsvTable:
-    """The CSV table, refusing a file too large to be bench data before reading it."""
-    path = Path(path)
-    try:
-        size = path.stat().st_size if path.is_file() else 0
-    except OSError:
-        size = 0  # read_csv_table says what is wrong with it
-    if size > MAX_FILE_BYTES:
-        raise DataFileError(path, f"{size / 2**20:.0f} MiB is too large for bench data (at most "
-                                  f"{MAX_FILE_BYTES // 2**20} MiB); split it by sensor or by run")
-    return read_csv_table(path)
+        return row_place(self.lines, row)
 
 
 def _hint_other_family(table: CsvTable) -> None:
@@ -176,7 +164,7 @@ def read_horizon_frames(path, *, sensor_id: str | None = None) -> HorizonFrames:
     DataFileError
         Naming the file, and where it can the row, its line and the column.
     """
-    table = _read_table(path)
+    table = read_bench_table(path, MAX_FILE_BYTES)
     _hint_other_family(table)
     require_columns(table, POSE_COLUMNS + ("cone", "disc_radius_deg"))
     if not table.rows:

@@ -34,9 +34,10 @@ from .datafile import (
     flag_column,
     header_numbers,
     load_calibration_json,
-    read_csv_table,
+    read_bench_table,
     refuse_rows,
     require_columns,
+    row_place,
     sensor_rows,
     temperature_column,
 )
@@ -81,21 +82,7 @@ class QdFrames:
 
     def where(self, row: int) -> str:
         """``row N (line L)`` of a data row, as error messages say it."""
-        line = self.lines.get(int(row))
-        return f"row {row}" + (f" (line {line})" if line is not None else "")
-
-
-def _read_table(path) -> CsvTable:
-    """The CSV table, refusing a file too large to be bench data before reading it."""
-    path = Path(path)
-    try:
-        size = path.stat().st_size if path.is_file() else 0
-    except OSError:
-        size = 0  # read_csv_table says what is wrong with it
-    if size > MAX_FILE_BYTES:
-        raise DataFileError(path, f"{size / 2**20:.0f} MiB is too large for bench data (at most "
-                                  f"{MAX_FILE_BYTES // 2**20} MiB); split it by sensor or by run")
-    return read_csv_table(path)
+        return row_place(self.lines, row)
 
 
 def _design(table: CsvTable) -> tuple[QdDesign, dict]:
@@ -155,7 +142,7 @@ def read_qd_frames(path, *, sensor_id: str | None = None) -> QdFrames:
     DataFileError
         Naming the file, and where it can the row, its line and the column.
     """
-    table = _read_table(path)
+    table = read_bench_table(path, MAX_FILE_BYTES)
     design, given = _design(table)
     _hint_cmos(table)
     require_columns(table, REQUIRED_COLUMNS)
@@ -249,7 +236,7 @@ class QdReadings:
 def read_qd_readings(path) -> QdReadings:
     """A CSV with at least `i1_a … i4_a, temperature_c`; `zenith_deg, azimuth_deg` (the truth, cells may be
     empty) and `dark` are used when present. Bad cells raise :class:`DataFileError` as in :func:`read_qd_frames`."""
-    table = _read_table(path)
+    table = read_bench_table(path, MAX_FILE_BYTES)
     _hint_cmos(table)
     require_columns(table, CURRENT_COLUMNS + ("temperature_c",))
     if not table.rows:

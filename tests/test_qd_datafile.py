@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from clitools import BAD_CELLS
 
+import bench.datafile as datafile
 import bench.qd_datafile as qd_datafile
 from bench.datafile import DataFileError
 from bench.qd_datafile import read_qd_csv, read_qd_frames, read_qd_readings, write_qd_csv
@@ -271,7 +272,7 @@ def test_not_utf8(tmp_path):
 def test_a_huge_file_is_refused_before_it_is_read(tmp_path, monkeypatch):
     path = _write(tmp_path, f"{HEADER}\n" + f"{LIGHT}\n" * 200)
     monkeypatch.setattr(qd_datafile, "MAX_FILE_BYTES", 1024)
-    monkeypatch.setattr(qd_datafile, "read_csv_table", lambda p: pytest.fail("read a file over the cap"))
+    monkeypatch.setattr(datafile, "read_csv_table", lambda p: pytest.fail("read a file over the cap"))
     exc = _error(path)
     assert "too large" in str(exc)
 
