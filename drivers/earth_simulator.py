@@ -22,11 +22,11 @@ from __future__ import annotations
 
 import logging
 import math
-import re
 import time
 
 from .errors import DeviceError, DeviceFault, DeviceTimeout, LimitError, ProtocolError
 from .interfaces import EarthSimulator, Limits, SourceStatus
+from .scpi_protocol import NUMBER, ScpiError, ScpiErrorQueue
 from .transport import Port, ask_again
 
 log = logging.getLogger(__name__)
@@ -45,20 +45,13 @@ MOTION_MARGIN_S = 5.0  # added to twice a motion's expected time before it count
 STATUS_HEATER, STATUS_SETTLED, STATUS_IRIS_MOVING, STATUS_COVER_OPEN = 0x01, 0x02, 0x04, 0x08
 STATUS_COVER_MOVING, STATUS_HEATER_FAULT = 0x10, 0x20
 
-_NUMBER = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?$")
-_ERROR = re.compile(r'^([+-]?\d+),"([^"]*)"$')
-_MAX_ERRORS = 20
 
 
-class EarthSimulatorError(DeviceError):
+class EarthSimulatorError(ScpiError):
     """The controller's error queue held entries after a command: `errors` [(code, text)], oldest first."""
 
-    def __init__(self, device: str, command: str, errors: list[tuple[int, str]]):
-        self.errors, self.command = errors, command
-        super().__init__(device, f"after {command!r}: " + "; ".join(f"{c} {m}" for c, m in errors))
 
-
-class EarthSimulatorSource(EarthSimulator):
+class EarthSimulatorSource(ScpiErrorQueue, EarthSimulator):
     """The IR Earth simulator as the bench's source (module docstring).
 
     Parameters
@@ -85,6 +78,8 @@ class EarthSimulatorSource(EarthSimulator):
         The time [s] motion deadlines are measured on (``time.monotonic``).
     name : str
     """
+
+    queue_error = EarthSimulatorError
 
     def __init__(self, port: Port, *, radius_limits_deg=DEFAULT_RADIUS_LIMITS_DEG,
                  temperature_limits_k=DEFAULT_TEMPERATURE_LIMITS_K, disc_temperature_k: float = DEFAULT_DISC_K,
@@ -121,7 +116,7 @@ class EarthSimulatorSource(EarthSimulator):
         return ask_again(self.name, attempt, self.retries if retry else 0)
 
     def _float(self, command: str, text: str) -> float:
-        if not _NUMBER.match(text):
+        if not NUMBER.match(text):
             raise ProtocolError(self.name, f"{command!r}: expected a number, got {text!r}")
         return float(text)
 
@@ -141,25 +136,6 @@ class EarthSimulatorSource(EarthSimulator):
         """Send a set and read the error queue empty; entries raise :class:`EarthSimulatorError`."""
         self._write(command)
         self.check_errors(command)
-
-    def next_error(self) -> tuple[int, str]:
-        """The oldest entry of the error queue (``SYST:ERR?``); not asked again (a read pops the entry)."""
-        def parse(command, text):
-            match = _ERROR.match(text)
-            if not match:
-                raise ProtocolError(self.name, f"{command!r}: expected <code>,\"<message>\", got {text!r}")
-            return int(match.group(1)), match.group(2)
-        return self._ask("SYST:ERR?", parse, retry=False)
-
-    def check_errors(self, command: str = "the last command") -> None:
-        errors = []
-        for _ in range(_MAX_ERRORS):
-            code, message = self.next_error()
-            if code == 0:
-                break
-            errors.append((code, message))
-        if errors:
-            raise EarthSimulatorError(self.name, command, errors)
 
     def _check_temperature(self, kelvin: float) -> float:
         low, high = self.temperature_limits_k

@@ -28,10 +28,10 @@ from __future__ import annotations
 
 import logging
 import math
-import re
 import time
 
-from .errors import DeviceError, LimitError, ProtocolError
+from .errors import LimitError, ProtocolError
+from .scpi_protocol import NUMBER, ScpiError, ScpiErrorQueue  # noqa: F401 - ScpiError re-exported
 from .transport import Port, ask_again
 
 log = logging.getLogger(__name__)
@@ -41,29 +41,9 @@ TERMINATOR = b"\n"
 # Agilent E363xA RS-232 (user's guide, "RS-232 Interface Configuration"): pass as open_port(**E363XA_SERIAL)
 E363XA_SERIAL = {"baudrate": 9600, "bytesize": 8, "parity": "N", "stopbits": 2, "dsrdtr": True}
 
-_NUMBER = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?$")
-_ERROR = re.compile(r'^([+-]?\d+),"([^"]*)"$')
-_MAX_ERRORS = 20  # a SCPI error queue holds a few dozen entries at most; stop reading after that many
 
 
-class ScpiError(DeviceError):
-    """The supply's error queue was not empty after a command.
-
-    Attributes
-    ----------
-    errors : list of (int, str)
-        Every (code, message) read from the queue, oldest first.
-    command : str
-    """
-
-    def __init__(self, device: str, command: str, errors: list[tuple[int, str]]):
-        self.errors = errors
-        self.command = command
-        text = "; ".join(f"{code} {message}" for code, message in errors)
-        super().__init__(device, f"after {command!r}: {text}")
-
-
-class ScpiSupply:
+class ScpiSupply(ScpiErrorQueue):
     """A SCPI bench power supply used as a constant-current LED driver.
 
     Parameters
@@ -116,7 +96,7 @@ class ScpiSupply:
         return ask_again(self.name, attempt, self.retries if retry else 0)
 
     def _float(self, command: str, text: str) -> float:
-        if not _NUMBER.match(text):
+        if not NUMBER.match(text):
             raise ProtocolError(self.name, f"{command!r}: expected a number, got {text!r}")
         return float(text)
 
@@ -141,29 +121,6 @@ class ScpiSupply:
         return voltage_v
 
     # -- errors ---------------------------------------------------------------------------------------
-    def next_error(self) -> tuple[int, str]:
-        """Get the oldest entry of the error queue (``SYST:ERR?`` → ``+0,"No error"``).
-
-        Not asked again after a bad reply: the read took the entry off the queue, a second read would lose it.
-        """
-        def parse(command, text):
-            match = _ERROR.match(text)
-            if not match:
-                raise ProtocolError(self.name, f"{command!r}: expected <code>,\"<message>\", got {text!r}")
-            return int(match.group(1)), match.group(2)
-        return self._ask("SYST:ERR?", parse, retry=False)
-
-    def check_errors(self, command: str = "the last command") -> None:
-        """Read the error queue until it is empty; raise :class:`ScpiError` if it held anything."""
-        errors = []
-        for _ in range(_MAX_ERRORS):
-            code, message = self.next_error()
-            if code == 0:
-                break
-            errors.append((code, message))
-        if errors:
-            raise ScpiError(self.name, command, errors)
-
     # -- identity -------------------------------------------------------------------------------------
     def identify(self) -> str:
         """Get the identification (``*IDN?`` → maker, model, serial, firmware)."""
