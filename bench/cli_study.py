@@ -175,30 +175,58 @@ def _cell4(value) -> str:
     return "—" if value is None or value != value else f"{value:.4f}"
 
 
+def _words(text: str, option: str, allowed) -> list[str]:
+    """A comma-separated list of words (`peak-threshold,two-level`) for a swept option, each one of `allowed`."""
+    values = [p.strip() for p in str(text).split(",") if p.strip()]
+    for value in values:
+        if value not in allowed:
+            raise typer.BadParameter(f"{option}: no {value!r} ({', '.join(allowed)})")
+    if not values:
+        raise typer.BadParameter(f"{option}: give at least one of {', '.join(allowed)}")
+    if len(set(values)) != len(values):
+        raise typer.BadParameter(f"{option}: a value is repeated in {text!r}")
+    return values
+
+
 @study_app.command("horizon-errors")
 @_study_errors
 @user_errors
 def horizon_errors(
-    altitude_km: str = typer.Option("400,500,700,1000", "--altitude-km", help="Altitudes [km], comma-separated."),
-    factors: str = typer.Option("altitude,cone,noise,mount,ifov,oblate,all", "--factors",
+    altitude_km: str = typer.Option("400,500,700,1000", "--altitude-km", help="Altitudes \\[km], comma-separated."),
+    factors: str = typer.Option("altitude,cone,noise,mount,ifov,oblate,atmosphere,all", "--factors",
                                 help="Budget rows: each error source alone, or `all` together (altitude, cone, "
                                      "noise, mount, ifov, oblate, atmosphere, all)."),
     altitude_error_km: str = typer.Option("10", "--altitude-error-km",
-                                          help="σ of the altitude the spacecraft believes [km] (ref [16]: 10)."),
+                                          help="σ of the altitude the spacecraft believes \\[km] (ref [16]: 10)."),
     cone_error_deg: str = typer.Option("0.02", "--cone-error-deg", help="σ of each cone's half-angle [°]."),
-    noise_s: str = typer.Option("2e-5", "--noise-s", help="σ of each crossing's time [s]."),
+    noise_s: str = typer.Option("2e-5", "--noise-s", help="σ of each crossing's time \\[s]."),
     mount_error_deg: str = typer.Option("0.2", "--mount-error-deg",
                                         help="σ of the mounting misalignment about each axis [°] (ref [16]: 0.2)."),
     ifov_deg: str = typer.Option("2", "--ifov-deg", help="IFOV half-angle [°] with the 50 % locator (thesis: 2)."),
     gamma_deg: str = typer.Option("70", "--gamma-deg", help="Scan half-cone γ [°] (thesis: 70)."),
-    scan_rate_hz: str = typer.Option("1", "--scan-rate-hz", help="Scan rate [rev/s] (thesis: 1)."),
+    scan_rate_hz: str = typer.Option("1", "--scan-rate-hz", help="Scan rate \\[rev/s] (thesis: 1)."),
     roll_range_deg: float = typer.Option(10.0, "--roll-range-deg", min=0.0, max=33.0,
                                          help="True roll drawn in ±this [°] (the sensor's range: 33)."),
     pitch_range_deg: float = typer.Option(10.0, "--pitch-range-deg", min=0.0, max=17.0,
                                           help="True pitch drawn in ±this [°] (the sensor's range: 17)."),
     solver: str = typer.Option("least-squares", "--solver",
                                help="least-squares | steepest-descent (ρ from the altitude) | free-rho | closed-form "
-                                    "(ρ solved from the crossings)."),
+                                    "(ρ solved from the crossings); not for the atmosphere, solved on WGS84."),
+    locator: str = typer.Option("peak-threshold", "--locator",
+                                help="The atmosphere's edge locator(s): peak-threshold (the thesis' eq. 2.1), "
+                                     "local-threshold, local-integrated, inflection, two-level."),
+    atmosphere_correction: str = typer.Option("none", "--atmosphere-correction",
+                                              help="none (h* = 0, the thesis' case D) | climatology (each crossing's "
+                                                   "h* predicted from the day's climatology)."),
+    weather: str = typer.Option("ordinary", "--weather",
+                                help="The truth's weather at each crossing: ordinary | cold-pool | none (the "
+                                     "climatology itself)."),
+    band_error: str = typer.Option("0.05", "--band-error",
+                                   help="σ of the truth band's strength (log-normal; the truth's band is the "
+                                        "7-sub-band model, the correction's the 5-sub-band one)."),
+    day_of_year: str = typer.Option("103", "--day-of-year", help="Day of the year (thesis: 103, 12 April)."),
+    sample_s: str = typer.Option("1e-3", "--sample-s",
+                                 help="The pulse's sample interval \\[s] (thesis' case D: 1e-3)."),
     draws: int = typer.Option(200, "--draws", min=1, max=10_000_000, help=DrawsHelp),
     seed: int = typer.Option(0, "--seed", help="Seed of the study."),
     chunk_size: int = typer.Option(100, "--chunk-size", min=1, max=1_000_000, help="Simulations per Dask task."),
@@ -211,7 +239,15 @@ def horizon_errors(
 ) -> None:
     """The scanning horizon sensor's error budget (seed 004): roll and pitch errors against altitude for each error
     source alone and all together, by Monte Carlo on Dask; any option takes a comma-separated list to sweep it."""
-    from .study_horizon import SOLVERS, horizon_spec, write_horizon_plot
+    from .study_horizon import (
+        ATMOSPHERE_CORRECTIONS,
+        ATMOSPHERE_OPTIONS,
+        LOCATORS,
+        SOLVERS,
+        WEATHERS,
+        horizon_spec,
+        write_horizon_plot,
+    )
 
     if solver not in SOLVERS:
         raise typer.BadParameter(f"no solver {solver!r} ({', '.join(SOLVERS)})")
@@ -226,7 +262,13 @@ def horizon_errors(
         ifov_deg=_numbers(ifov_deg, "--ifov-deg", lo=0.0, hi=10.0),
         gamma_deg=_numbers(gamma_deg, "--gamma-deg", lo=1.0, hi=89.0),
         scan_rate_hz=_numbers(scan_rate_hz, "--scan-rate-hz", lo=0.01, hi=100.0),
-        roll_range_deg=roll_range_deg, pitch_range_deg=pitch_range_deg, solver=solver)
+        roll_range_deg=roll_range_deg, pitch_range_deg=pitch_range_deg, solver=solver,
+        locator=_words(locator, "--locator", LOCATORS),
+        atmosphere_correction=_words(atmosphere_correction, "--atmosphere-correction", ATMOSPHERE_CORRECTIONS),
+        weather=_words(weather, "--weather", WEATHERS),
+        band_error=_numbers(band_error, "--band-error", lo=0.0, hi=1.0),
+        day_of_year=_numbers(day_of_year, "--day-of-year", lo=1.0, hi=366.0),
+        sample_s=_numbers(sample_s, "--sample-s", lo=1e-6, hi=0.01))
     result = _run(spec, out_path, scheduler, workers, write_horizon_plot, plots, as_json)
     summary = result.summary
     if as_json:
@@ -236,24 +278,39 @@ def horizon_errors(
     others = [c for c in spec.sweep if c not in ("altitude_km", "factor")]
     table = Table(title="Roll and pitch error [°] (solved − true): mean |error|, RMS, 95 % of |error|",
                   title_justify="left")
-    for column in ("altitude [km]", "factor", *others, "n", "errors", "roll mean", "roll RMS", "roll 95 %",
-                   "pitch mean", "pitch RMS", "pitch 95 %", "nadir RMS"):
+    label = {"atmosphere_correction": "correction"}
+    for column in ("altitude [km]", "factor", *[label.get(o, o) for o in others], "n", "errors", "roll mean",
+                   "roll RMS", "roll 95 %", "pitch mean", "pitch RMS", "pitch 95 %", "nadir RMS"):
         table.add_column(column, justify="left" if column == "factor" else "right")
+    shown = set()
     for _, group in summary.groupby(list(spec.sweep), sort=False):
         cell = {row["output"]: row for _, row in group.iterrows()}
         roll, pitch, nadir = (cell.get(k) for k in ("roll_error_deg", "pitch_error_deg", "nadir_error_deg"))
         first = group.iloc[0]
-        if roll is None:  # every simulation of the setting failed: no outputs to show
-            table.add_row(f"{first['altitude_km']:g}", str(first["factor"]), *[str(first[o]) for o in others],
-                          "0", str(int(first["errors"])), *["—"] * 7)
+        # a row without the atmosphere ignores its options: shown once, with "—" for them
+        blind = first["factor"] not in ("atmosphere", "all")
+        values = ["—" if blind and o in ATMOSPHERE_OPTIONS else str(first[o]) for o in others]
+        key = (first["altitude_km"], first["factor"], *values)
+        if key in shown:
             continue
-        table.add_row(f"{first['altitude_km']:g}", str(first["factor"]), *[str(first[o]) for o in others],
+        shown.add(key)
+        if roll is None:  # every simulation of the setting failed: no outputs to show
+            table.add_row(f"{first['altitude_km']:g}", str(first["factor"]), *values, "0", str(int(first["errors"])),
+                          *["—"] * 7)
+            continue
+        table.add_row(f"{first['altitude_km']:g}", str(first["factor"]), *values,
                       str(int(roll["n"])), str(int(roll["errors"])), _cell4(roll["mean_abs"]), _cell4(roll["rms"]),
                       _cell4(roll["p95_abs"]), _cell4(pitch["mean_abs"]), _cell4(pitch["rms"]),
                       _cell4(pitch["p95_abs"]), _cell4(nadir["rms"]))
+    fixed = spec.fixed
+    atmosphere = ("; atmosphere and all: WGS84 solve with the position known (the solver does not apply), "
+                  + ", ".join(f"{o.replace('_', ' ')} {fixed[o]}" for o in ("locator", "atmosphere_correction",
+                                                                          "weather") if o in fixed)
+                  if {"atmosphere", "all"} & set(names) else "")
     table.caption = (f"true roll in ±{roll_range_deg:g}°, pitch in ±{pitch_range_deg:g}°; solver {solver} with the "
                      "sensor's spherical model (a = 6378.137 km); the truth is that sphere but for `oblate` (WGS84, a "
-                     "97.4° orbit) and `all`; nadir: the angle between the true and the solved nadir")
+                     "97.4° orbit), `atmosphere` and `all`" + atmosphere
+                     + "; nadir: the angle between the true and the solved nadir")
     table.caption_justify = "left"
     out.print(table)
     _finish(result)

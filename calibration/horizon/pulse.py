@@ -20,6 +20,7 @@ radiance as a function of a ray's signed tangent height (:mod:`calibration.horiz
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import lru_cache
 
 import numpy as np
 
@@ -45,6 +46,36 @@ from .scan import (
 )
 
 TANGENT_METHODS = ("scaled", "exact")
+
+
+@lru_cache(maxsize=32)
+def _node_pattern(half_angle_deg: float, response: str, fwhm_deg: float | None, n_radial: int, n_azimuth: int):
+    """:func:`calibration.horizon.ifov.ifov_nodes` about the z axis, kept per IFOV: the nodes' components along
+    the boresight and the two basis vectors ifov_nodes completes it with (for z: e1 = y, e2 = −x), and the weights.
+    Read-only arrays; a pulse turns them onto its boresights (:func:`_ifov_nodes_cached`)."""
+    dirs, weights = ifov_nodes(np.array([0.0, 0.0, 1.0]), half_angle_deg, response, fwhm_deg, n_radial, n_azimuth)
+    parts = (dirs[:, 2].copy(), dirs[:, 1].copy(), -dirs[:, 0], np.asarray(weights, float).copy())
+    for a in parts:
+        a.setflags(write=False)
+    return parts
+
+
+def _ifov_nodes_cached(boresights: np.ndarray, half_angle_deg, response: str, fwhm_deg, n_radial: int,
+                       n_azimuth: int):
+    """``(directions (M, N, 3), weights (N,))`` as :func:`calibration.horizon.ifov.ifov_nodes` gives them for unit
+    `boresights` (M, 3) (seed 004 §2-4-2), from the pattern cached per IFOV: the same basis (e1 = b × x̂, or b × ŷ
+    when |b_x| ≥ 0.9; e2 = b × e1), so the same nodes to rounding."""
+    along, on_e1, on_e2, weights = _node_pattern(float(half_angle_deg), response,
+                                                 None if fwhm_deg is None else float(fwhm_deg), int(n_radial),
+                                                 int(n_azimuth))
+    b = boresights / np.linalg.norm(boresights, axis=-1, keepdims=True)
+    helper = np.where(np.abs(b[:, :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    e1 = np.cross(b, helper)
+    e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
+    e2 = np.cross(b, e1)
+    dirs = (along[None, :, None] * b[:, None, :] + on_e1[None, :, None] * e1[:, None, :]
+            + on_e2[None, :, None] * e2[:, None, :])
+    return dirs, weights
 
 
 def sample_phases_deg(step_s: float, period_s: float = 1.0 / THESIS_SCAN_RATE_HZ, start_s: float = 0.0,
@@ -162,7 +193,9 @@ def wgs84_pulse(phase_deg, position_km, body_to_frame, radiance: Callable[[np.nd
         depth = ellipsoid_depth(p)
         out = np.array([covered_fraction(b, depth, half_angle_deg) for b in boresights])
         return _finish(out.reshape(np.shape(phase_deg)), filter_window)
-    dirs, weights = ifov_nodes(boresights, half_angle_deg, response, fwhm_deg, n_radial, n_azimuth)
+    if response not in RESPONSES:
+        raise ValueError(f"response must be one of {RESPONSES}, got {response!r}")
+    dirs, weights = _ifov_nodes_cached(boresights, half_angle_deg, response, fwhm_deg, n_radial, n_azimuth)
     if tangent == "scaled":
         heights = tangent_height_scaled_km(p, dirs)
     else:
