@@ -20,6 +20,7 @@ import numpy as np
 
 from calibration.geometry import direction_vector
 from calibration.horizon.scan import nadir_in_body, roll_pitch_of_nadir
+from calibration.sequences import halton_points
 from calibration.stage_geometry import StageGeometry
 
 from ..campaign import HorizonGridProcedure
@@ -130,17 +131,7 @@ def roll_pitch_of_direction(zenith_deg, azimuth_deg) -> tuple[np.ndarray, np.nda
 def halton_poses(n: int, roll_range_deg: float, pitch_range_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """`n` check poses spread over ±roll × ±pitch (Halton bases 2 and 3, from the second element: off the grid's
     centre)."""
-    def halton(i, base):
-        f, r = 1.0, 0.0
-        while i > 0:
-            f /= base
-            r += f * (i % base)
-            i //= base
-        return r
-
-    k = np.arange(1, n + 1)
-    u = np.array([halton(int(i), 2) for i in k])
-    v = np.array([halton(int(i), 3) for i in k])
+    u, v = halton_points(n).T
     return (2 * u - 1) * roll_range_deg, (2 * v - 1) * pitch_range_deg
 
 

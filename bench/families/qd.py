@@ -17,6 +17,7 @@ from calibration.mount import mount_for_projection, projection_grid
 from calibration.qd.data import QdBenchData
 from calibration.qd.design import DEFAULT_QD
 from calibration.qd.evaluation import calibrate_qd
+from calibration.sequences import halton_points
 from calibration.stage_geometry import StageGeometry
 
 from ..descriptor import FieldSpec, ReadingDescriptor
@@ -121,15 +122,7 @@ def grid_points(procedure, mount) -> list[Point]:
 def check_directions(n: int, field_deg: float) -> tuple[np.ndarray, np.ndarray]:
     """`n` check directions spread over the field and off every grid: the Halton sequence in bases 2 and 3,
     over 95 % of ±field [°] (the same every run, so a resumed run measures the same ones)."""
-    def halton(i: int, base: int) -> float:
-        f, r = 1.0, 0.0
-        while i > 0:
-            f /= base
-            r += f * (i % base)
-            i //= base
-        return r
-
-    u = np.array([[halton(i + 1, 2), halton(i + 1, 3)] for i in range(n)])
+    u = halton_points(n)
     span = 0.95 * field_deg
     return np.round((2 * u[:, 0] - 1) * span, 2), np.round((2 * u[:, 1] - 1) * span, 2)
 

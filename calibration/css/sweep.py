@@ -26,6 +26,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..sequences import halton_points
 from .head import FACES, NORMALS, vector_angles
 
 #: Directions closer than this (a chord of unit vectors, about 2e-5°) are one direction
@@ -103,20 +104,9 @@ def sweep_size_bound(field_deg: float, step_deg: float, around: int, n_faces: in
     return n_faces * (1 + int(math.floor(field_deg / step_deg + 1e-9)) * around + around)
 
 
-def halton(i: int, base: int) -> float:
-    """The `i`-th element (from 1) of van der Corput's sequence in `base` (Halton 1960)."""
-    f, r = 1.0, 0.0
-    while i > 0:
-        f /= base
-        r += f * (i % base)
-        i //= base
-    return r
-
-
 def halton_directions(n: int, *, decimals: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """`n` directions spread evenly over the whole sphere: the Halton sequence in bases 2 and 3 mapped area-true
     (cos θ = 1 − 2u, φ = 360° v), rounded to `decimals` [°] (zenith, azimuth), the same every time."""
-    u = np.array([halton(i + 1, 2) for i in range(n)])
-    v = np.array([halton(i + 1, 3) for i in range(n)])
+    u, v = halton_points(n).T
     zenith = np.degrees(np.arccos(np.clip(1.0 - 2.0 * u, -1.0, 1.0)))
     return np.round(zenith, decimals), np.round(360.0 * v, decimals) % 360.0
