@@ -30,7 +30,7 @@ from calibration.synthetic import seed003_grid
 from drivers.sim.raytrace import trace_bench_frames, trace_chief_ray
 from drivers.sim.world import SensorTruth, fleet_sensor
 
-from .study_engine import StudyError, StudySpec
+from .study_engine import StudyError, StudySpec, sweep_options
 
 VERSION = "1"
 #: `sunbench study cmos-plan`'s defaults: seed 003's 8 × 7 × 4 plan among sparser and denser ones.
@@ -112,17 +112,9 @@ def cmos_spec(*, azimuths=(4, 8, 16), rings=(4, 7, 13), repeats=(1, 4), draws: i
         bad = [v for v in values if int(v) != v or v < least]
         if bad:
             raise StudyError(f"`{name}` must be whole numbers ≥ {least}, got {bad}")
-    sweep: dict = {"azimuths": tuple(int(v) for v in azimuths), "rings": tuple(int(v) for v in rings),
-                   "repeats": tuple(int(v) for v in repeats)}
-    fixed: dict = {}
-    for name, default in DEFAULTS.items():
-        value = options.get(name, default)
-        if isinstance(value, (list, tuple)):
-            if len(value) > 1:
-                sweep[name] = tuple(value)
-                continue
-            value = value[0]
-        fixed[name] = value
+    sweep, fixed = sweep_options(DEFAULTS, options, {"azimuths": tuple(int(v) for v in azimuths),
+                                                     "rings": tuple(int(v) for v in rings),
+                                                     "repeats": tuple(int(v) for v in repeats)})
     return StudySpec("cmos-plan", "bench.study_cmos:simulate_cmos", sweep, fixed, draws=draws, seed=seed,
                      chunk_size=chunk_size, version=VERSION)
 

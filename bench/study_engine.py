@@ -159,6 +159,21 @@ class StudySpec:
         return math.prod(len(v) for v in self.sweep.values()) * self.draws
 
 
+def sweep_options(defaults: dict, options: dict, sweep: dict) -> tuple[dict, dict]:
+    """The study's swept and fixed values: `sweep` as given, then every option of `defaults` (its value in `options`,
+    else the default) swept when it is a list of more than one value, fixed otherwise."""
+    sweep, fixed = dict(sweep), {}
+    for name, default in defaults.items():
+        value = options.get(name, default)
+        if isinstance(value, (list, tuple)):
+            if len(value) > 1:
+                sweep[name] = tuple(value)
+                continue
+            value = value[0]
+        fixed[name] = value
+    return sweep, fixed
+
+
 def _check_scalar(name: str, value) -> None:
     if not isinstance(value, _SCALARS) or (isinstance(value, float) and not math.isfinite(value)):
         raise StudyError(f"parameter {name!r}: {value!r} is not a finite number, a string or a boolean")

@@ -79,7 +79,7 @@ from calibration.horizon.scan import (
     nadir_in_body,
 )
 
-from .study_engine import StudyError, StudySpec
+from .study_engine import StudyError, StudySpec, sweep_options
 
 #: The error sources a budget row can switch on alone; "all" switches every one whose σ is non-zero.
 FACTORS = ("altitude", "cone", "noise", "mount", "ifov", "oblate", "atmosphere")
@@ -398,16 +398,8 @@ def horizon_spec(*, altitudes_km=(400.0, 500.0, 700.0, 1000.0),
         for v in value if isinstance(value, (list, tuple)) else (value,):
             if v not in allowed:
                 raise StudyError(f"no {name.replace('_', ' ')} {v!r} ({', '.join(allowed)})")
-    sweep: dict = {"altitude_km": tuple(float(a) for a in altitudes_km), "factor": tuple(factors)}
-    fixed: dict = {}
-    for name, default in DEFAULTS.items():
-        value = options.get(name, default)
-        if isinstance(value, (list, tuple)):
-            if len(value) > 1:
-                sweep[name] = tuple(value)
-                continue
-            value = value[0]
-        fixed[name] = value
+    sweep, fixed = sweep_options(DEFAULTS, options, {"altitude_km": tuple(float(a) for a in altitudes_km),
+                                                     "factor": tuple(factors)})
     return StudySpec("horizon-errors", "bench.study_horizon:simulate_horizon", sweep, fixed, draws=draws, seed=seed,
                      chunk_size=chunk_size, version=VERSION)
 
