@@ -10,8 +10,11 @@ no scheduler or pool of our own.
 Resumable: a finished chunk is written at once to ``<out>.chunks/<spec hash>-<k>.csv`` (a temporary file renamed into
 place, so a chunk file is whole or absent), and a run of the same spec reuses the chunks already there. The spec's
 hash names them; a changed spec (another value, another seed, another chunk size or version) starts afresh and says
-so. Results: the table (one row per simulation: its parameters, seed, outputs and, in words, any error), a summary
-per parameter setting (:func:`summarise`: mean, mean |x|, RMS, percentiles of |x|) and plots.
+so, and the earlier spec's chunks stay (nothing is deleted: run that spec again and they are reused). While chunks
+run, a watchdog stops a study whose cluster has had no worker for :data:`NO_WORKER_TIMEOUT_S` (the finished chunks
+are kept, so the same command resumes it) and warns when no chunk has finished for :data:`STALL_WARNING_S`.
+Results: the table (one row per simulation: its parameters, seed, outputs and, in words, any error), a summary per
+parameter setting (:func:`summarise`: mean, mean |x|, RMS, percentiles of |x|) and plots.
 
 Draw d has the same seed at every setting (common random numbers): the same simulated sensor, attitude or noise
 draw meets every setting, so a difference between settings is the settings', not the luck of different draws.
@@ -52,6 +55,12 @@ STATISTICS = ("n", "failed", "mean", "sd", "mean_abs", "rms", "p50_abs", "p95_ab
 
 #: How long to try reaching an existing cluster's scheduler before saying it does not answer [s].
 CONNECT_TIMEOUT_S = 10.0
+#: How long the cluster may have no worker while chunks wait before the study stops and says so [s].
+NO_WORKER_TIMEOUT_S = 60.0
+#: How long without a finished chunk before a warning line, repeated at this interval [s].
+STALL_WARNING_S = 600.0
+#: How often the wait for chunks asks the scheduler how many workers it has [s].
+WATCH_INTERVAL_S = 1.0
 
 _CHUNK_FILE = re.compile(r"^([0-9a-f]{12})-(\d+)\.csv$")
 _SCALARS = (bool, int, float, str)
@@ -239,30 +248,45 @@ def _existing_chunks(directory: Path) -> dict[str, set[int]]:
 
 
 def prepare_chunks(spec: StudySpec, out: Path) -> tuple[set[int], str | None]:
-    """The chunks of `spec` already written under `out` and, when chunks of another spec were there, why they were
-    removed (the spec changed: the study starts afresh). Writes the spec beside the chunks."""
+    """The chunks of `spec` already written under `out` and, when it has none but another spec's chunks are there,
+    a note that the spec changed and the study starts afresh.
+
+    Nothing is removed: a chunk file is named by its spec's hash, so another spec's chunks are kept (and reused when
+    that spec is run again) and a mistyped or interrupted rerun cannot destroy a finished study. Writes the spec
+    beside its chunks (``<hash>.spec.json``, and ``spec.json``: the spec run last).
+    """
     directory = chunk_dir(out)
     found = _existing_chunks(directory)
     digest = spec.digest
-    n_chunks = len(spec.chunks())
-    restarted = None
-    stale = {d: ks for d, ks in found.items() if d != digest}
-    if stale:
-        old = _read_spec(directory)
-        changed = _spec_changes(old, spec.to_dict()) if old else "an earlier spec"
-        count = sum(len(ks) for ks in stale.values())
-        for d, ks in stale.items():
-            for k in ks:
-                (directory / f"{d}-{k}.csv").unlink(missing_ok=True)
-        restarted = f"the study spec changed ({changed}): {count} chunk(s) of the earlier spec removed, starting afresh"
+    done = {k for k in found.get(digest, set()) if k < len(spec.chunks())}
+    others = {d: ks for d, ks in found.items() if d != digest}
+    note = None
+    if others and not done:
+        previous = _previous_spec(directory, others)
+        changed = _spec_changes(previous, spec.to_dict()) if previous else "an earlier spec"
+        count = sum(len(ks) for ks in others.values())
+        note = (f"the study spec changed ({changed}): starting afresh as spec {digest}; the {count} chunk(s) of "
+                f"{len(others)} earlier spec(s) are kept in {directory} and reused if that spec is run again")
     directory.mkdir(parents=True, exist_ok=True)
-    (directory / "spec.json").write_text(json.dumps({**spec.to_dict(), "digest": digest}, indent=1))
-    return {k for k in found.get(digest, set()) if k < n_chunks}, restarted
+    text = json.dumps({**spec.to_dict(), "digest": digest}, indent=1)
+    (directory / f"{digest}.spec.json").write_text(text)
+    (directory / "spec.json").write_text(text)
+    return done, note
 
 
-def _read_spec(directory: Path) -> dict | None:
+def _previous_spec(directory: Path, others: dict[str, set[int]]) -> dict | None:
+    """The spec that `others`' chunks belong to, to say what changed: the spec run last when it is one of them,
+    else the one whose chunk was written last."""
+    last = _read_spec(directory)
+    if last and last.get("digest") in others:
+        return last
+    newest = max(others, key=lambda d: max((directory / f"{d}-{k}.csv").stat().st_mtime for k in others[d]))
+    return _read_spec(directory, f"{newest}.spec.json")
+
+
+def _read_spec(directory: Path, name: str = "spec.json") -> dict | None:
     try:
-        return json.loads((directory / "spec.json").read_text())
+        return json.loads((directory / name).read_text())
     except (OSError, ValueError):
         return None
 
@@ -296,7 +320,7 @@ class StudyResult:
     failed_chunks : dict of int to str
         Chunks whose task failed twice, with the error in words.
     restarted : str or None
-        Why the chunks of an earlier spec were discarded.
+        Why the study started afresh: the spec changed (the earlier spec's chunks are kept).
     compute_s : float
         Wall time from the first task submitted to the last result [s] (0 when nothing was computed).
     workers : int
@@ -360,7 +384,11 @@ def open_client(scheduler: str | None, workers: int | None):
     n = workers or os.cpu_count() or 1
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                            silence_logs=logging.ERROR)
-    return Client(cluster), cluster
+    try:
+        return Client(cluster), cluster
+    except BaseException:  # its worker processes must not outlive a client that never came
+        cluster.close()
+        raise
 
 
 def run_study(spec: StudySpec, out: Path, *, scheduler: str | None = None, workers: int | None = None,
@@ -434,23 +462,95 @@ def _compute(spec, out, chunks, todo, run_id, scheduler, workers, console, progr
                                  f"{run_id}", retries=1, pure=False): k for k in todo}
         total = sum(len(chunks[k]) for k in todo)
         bar = _ProgressBar(console, progress, f"{spec.name}: {total} simulations on {n_workers} worker(s)", total)
+        where = f"the Dask scheduler at {scheduler}" if scheduler else "the local Dask cluster"
+        watchdog = _Watchdog(client, where, len(todo), chunk_dir(out), console)
+        pending = as_completed(futures)
         with bar as (advance):
-            for future in as_completed(futures):
-                k = futures[future]
-                if future.status == "finished":
-                    rows = future.result()
-                    write_chunk(chunk_path(out, spec.digest, k), rows)
-                    computed += len(rows)
-                else:
-                    failed[k] = _task_error(future)
-                advance(len(chunks[k]))
-                future.release()
+            while not pending.is_empty():
+                batch = pending.next_batch(block=False)
+                if not batch:  # as_completed has no wait with a timeout: poll, the watchdog looking in between
+                    watchdog.check()
+                    time.sleep(0.05)
+                    continue
+                for future in batch:
+                    k = futures[future]
+                    rows = _chunk_rows(future, watchdog) if future.status == "finished" else None
+                    if rows is not None:
+                        write_chunk(chunk_path(out, spec.digest, k), rows)
+                        computed += len(rows)
+                    else:
+                        failed[k] = _task_error(future)
+                    advance(len(chunks[k]))
+                    watchdog.finished(kept=k not in failed)
+                    future.release()
         compute_s = time.perf_counter() - t0
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
     return computed, compute_s, n_workers, failed
+
+
+def _chunk_rows(future, watchdog) -> list[dict] | None:
+    """A finished chunk's rows fetched from the worker holding them, or None when the task failed after all; the
+    watchdog watches the wait (a worker that leaves first takes the rows along: Dask computes the chunk again, on a
+    worker there may no longer be)."""
+    while True:
+        try:
+            return future.result(timeout=WATCH_INTERVAL_S)
+        except TimeoutError:
+            watchdog.check()
+        except Exception:  # the chunk computed again failed, or was lost with the cluster
+            return None
+
+
+class _Watchdog:
+    """Watches a wait for chunks: a :class:`StudyError` once the scheduler has had no worker for
+    :data:`NO_WORKER_TIMEOUT_S` (the tasks would wait forever), a warning line each :data:`STALL_WARNING_S` without
+    a finished chunk."""
+
+    def __init__(self, client, where: str, chunks: int, directory: Path, console) -> None:
+        self.client, self.where, self.directory, self.console = client, where, directory, console
+        self.chunks, self.left, self.kept = chunks, chunks, 0
+        now = time.monotonic()
+        self.last_finished = self.last_warned = self.last_asked = now
+        self.no_worker_since: float | None = None
+
+    def finished(self, kept: bool) -> None:
+        self.left -= 1
+        self.kept += kept
+        self.last_finished = self.last_warned = time.monotonic()
+
+    def check(self) -> None:
+        now = time.monotonic()
+        if now - self.last_asked >= WATCH_INTERVAL_S:
+            self.last_asked = now
+            if self._workers() > 0:
+                self.no_worker_since = None
+            elif self.no_worker_since is None:
+                self.no_worker_since = now
+            elif now - self.no_worker_since >= NO_WORKER_TIMEOUT_S:
+                raise StudyError(f"{self.where} has had no worker for {NO_WORKER_TIMEOUT_S:g} s while {self.left} of "
+                                 f"{self.chunks} chunk(s) waited: study stopped; the {self.kept} chunk(s) finished "
+                                 f"by this run are kept in {self.directory}, and the same command resumes the study "
+                                 "once the cluster has workers")
+        if now - self.last_warned >= STALL_WARNING_S:
+            self.last_warned = now
+            self._say(f"no chunk has finished for {now - self.last_finished:.0f} s ({self.left} of "
+                      f"{self.chunks} left, {self._workers()} worker(s)); still waiting — Ctrl-C keeps the finished "
+                      "chunks and the same command resumes")
+
+    def _workers(self) -> int:
+        try:
+            return len(self.client.nthreads())
+        except (OSError, TimeoutError):  # a scheduler that does not answer has no worker for us
+            return 0
+
+    def _say(self, text: str) -> None:
+        if self.console is not None:
+            self.console.print(f"[yellow]warning:[/] {text}", highlight=False)
+        else:
+            logging.getLogger(__name__).warning(text)
 
 
 def _task_error(future) -> str:

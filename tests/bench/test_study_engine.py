@@ -4,10 +4,13 @@ reached through the same `--scheduler tcp://…` address a user gives `sunbench 
 What is checked: the study table (one row per simulation, its parameters, seed and outputs) and its summary; the
 chunks kept as they finish and reused by a rerun of the same spec (the simulations run again are counted by the
 `run_id` each row carries: only the chunks that were missing are recomputed, and their rows equal the first run's);
-a changed spec starting afresh and saying so; an error in a simulation recorded in words in its row; a chunk whose
-task fails on the workers (they cannot import the simulation, as on a cluster without sunbench) retried and reported.
+a changed spec starting afresh and saying so while the earlier spec's chunks stay (a mistyped rerun destroys nothing,
+and the earlier spec run again reuses them all); an error in a simulation recorded in words in its row; a chunk whose
+task fails on the workers (they cannot import the simulation, as on a cluster without sunbench) retried and reported;
+a cluster whose every worker leaves mid-study stopped by the watchdog with the finished chunks kept, and resumed.
 """
 
+import io
 import json
 import textwrap
 
@@ -102,7 +105,7 @@ def test_statistics():
     assert set(s) == set(STATISTICS)
 
 
-def test_study_on_an_existing_cluster_through_the_cli(scheduler, tmp_path):
+def test_study_on_an_existing_cluster_through_the_cli(scheduler, tmp_path, monkeypatch):
     out = tmp_path / "h" / "budget.csv"
     r = invoke(*HORIZON, "--out", out, "--scheduler", scheduler)
     assert r.exit_code == 0, r.output
@@ -124,7 +127,7 @@ def test_study_on_an_existing_cluster_through_the_cli(scheduler, tmp_path):
     assert out.with_name("budget.html").is_file() and (out.parent / "plotly.min.js").is_file()
     assert "Roll and pitch error" in r.output and "mount" in r.output
 
-    # resume: chunks 1 and 4 lost (an interrupted run never wrote them) — only their 3 + 2 simulations run again
+    # resume: chunks 1 and 6 lost (an interrupted run never wrote them) — only their 3 + 2 simulations run again
     digest = json.loads((chunk_dir(out) / "spec.json").read_text())["digest"]
     chunks = sorted(chunk_dir(out).glob(f"{digest}-*.csv"))
     assert len(chunks) == 7
@@ -144,13 +147,26 @@ def test_study_on_an_existing_cluster_through_the_cli(scheduler, tmp_path):
     assert r.exit_code == 0, r.output
     assert "20 of 20 simulations (0 run now, 20 kept" in r.output
 
-    # a changed spec starts afresh and says which part changed
+    # a mistyped rerun (another spec, a scheduler that does not answer) stops before any work and destroys nothing
+    monkeypatch.setattr(study_engine, "CONNECT_TIMEOUT_S", 1.0)
+    r = invoke(*HORIZON[:-4], "--draws", "50", "--chunk-size", "3", "--solver", "closed-form", "--out", out,
+               "--scheduler", "tcp://127.0.0.1:1")
+    assert r.exit_code == 2 and "no Dask scheduler answers" in r.output
+    assert sorted(chunk_dir(out).glob(f"{digest}-*.csv")) == chunks
+
+    # a changed spec starts afresh, says which part changed, and keeps the earlier spec's chunks
     r = invoke(*HORIZON[:-4], "--draws", "4", "--chunk-size", "3", "--solver", "closed-form", "--out", out,
                "--scheduler", scheduler)
     assert r.exit_code == 0, r.output
-    assert "the study spec changed (draws)" in r.output and "7 chunk(s) of the earlier spec removed" in r.output
+    assert "the study spec changed (draws): starting afresh" in r.output
+    assert "the 7 chunk(s) of 1 earlier spec(s) are kept" in r.output
     assert "16 of 16 simulations (16 run now" in r.output
-    assert len(list(chunk_dir(out).glob("*.csv"))) == 6
+    assert len(list(chunk_dir(out).glob("*.csv"))) == 7 + 6
+    # the earlier spec run again: all its chunks reused, nothing computed (no cluster reached), the same table
+    r = invoke(*HORIZON, "--out", out, "--scheduler", "tcp://127.0.0.1:1")
+    assert r.exit_code == 0, r.output
+    assert "20 of 20 simulations (0 run now, 20 kept" in r.output and "spec changed" not in r.output
+    pd.testing.assert_frame_equal(pd.read_csv(out), again)
 
 
 def test_a_chunk_failing_on_the_workers_is_retried_then_reported(scheduler, tmp_path, monkeypatch):
@@ -196,3 +212,78 @@ def test_an_unreachable_scheduler_and_a_bad_table_are_user_errors(tmp_path, monk
     r = invoke(*HORIZON, "--out", tmp_path / "x.parquet")
     assert r.exit_code == 2 and "Parquet needs pyarrow" in r.output
     assert not (tmp_path / "x.parquet.chunks").exists()
+
+
+def test_a_local_cluster_is_closed_when_its_client_cannot_start(monkeypatch):
+    import distributed
+
+    real_cluster, started = distributed.LocalCluster, []
+
+    def local_cluster(**options):  # a real cluster, without worker processes to keep the test fast
+        started.append(real_cluster(**{**options, "n_workers": 0, "processes": False}))
+        return started[-1]
+
+    def refused(*args, **kwargs):
+        raise OSError("the client could not start")
+
+    monkeypatch.setattr(distributed, "LocalCluster", local_cluster)
+    monkeypatch.setattr(distributed, "Client", refused)
+    with pytest.raises(OSError, match="could not start"):
+        study_engine.open_client(None, 1)
+    assert len(started) == 1 and started[0].status.name == "closed"
+
+
+LEAVES_ITS_WORKER = """
+import time
+from pathlib import Path
+
+def simulate(params, seed):
+    # setting a=2, while the marker file is there: wait for chunk 0's file, then close the worker this runs on
+    marker = Path(params["marker"])
+    if params["a"] == 2 and marker.exists():
+        while not list(Path(params["chunks"]).glob("*-0.csv")):
+            time.sleep(0.02)
+        marker.unlink()
+        from distributed import get_worker
+
+        worker = get_worker()
+        worker.loop.add_callback(worker.close)
+        time.sleep(0.5)
+    return {"x": 10.0 * params["a"] + seed % 7}
+"""
+
+
+def test_a_cluster_left_without_workers_stops_the_study_and_a_rerun_resumes(tmp_path, monkeypatch):
+    from distributed import Client, LocalCluster
+    from rich.console import Console
+
+    monkeypatch.setattr(study_engine, "NO_WORKER_TIMEOUT_S", 1.0)
+    monkeypatch.setattr(study_engine, "WATCH_INTERVAL_S", 0.1)
+    monkeypatch.setattr(study_engine, "STALL_WARNING_S", 0.5)
+    (tmp_path / "leaves_its_worker.py").write_text(LEAVES_ITS_WORKER)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    marker = tmp_path / "leave"
+    marker.touch()
+    out = tmp_path / "r.csv"
+    spec = StudySpec("leaving", "leaves_its_worker:simulate", {"a": (1, 2, 3)},
+                     {"marker": str(marker), "chunks": str(chunk_dir(out))}, chunk_size=1)
+    # one worker thread in this process (it imports the simulation from tmp_path), reached by its address
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp://",
+                      dashboard_address=":0") as cluster:
+        said = io.StringIO()
+        with pytest.raises(StudyError) as stopped:
+            run_study(spec, out, scheduler=cluster.scheduler_address, console=Console(file=said, width=300),
+                      progress=False)
+        assert not marker.exists()  # the worker did leave, mid-study
+        why = str(stopped.value)
+        assert f"the Dask scheduler at {cluster.scheduler_address} has had no worker for 1 s" in why
+        assert "2 of 3 chunk(s) waited" in why and "the 1 chunk(s) finished by this run are kept" in why
+        assert "no chunk has finished for" in said.getvalue() and "0 worker(s)" in said.getvalue()
+        assert [p.name for p in chunk_dir(out).glob("*-*.csv")] == [f"{spec.digest}-0.csv"]
+
+        cluster.scale(2)  # a fresh worker (the closed one still counts as one of the two)
+        with Client(cluster) as client:
+            client.wait_for_workers(1, timeout=10)
+        result = run_study(spec, out, scheduler=cluster.scheduler_address, progress=False)
+    assert (result.computed, result.reused, result.failed_chunks) == (2, 1, {})
+    assert list(result.table["x"]) == [10.0 * a + spec.draw_seed(0) % 7 for a in (1, 2, 3)]
