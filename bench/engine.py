@@ -12,9 +12,12 @@ An emergency stop latches: the engine stays in ``estop``, refusing every move an
 operator acknowledges it (:meth:`RunEngine.acknowledge_estop`). Manual commands (jog, lamp, shutter) go through
 the engine too, so an emergency stop interrupts them like a run.
 
-A move is expected to take what the table's own speeds say (:meth:`drivers.interfaces.RotaryTable.expected_motion`,
-:class:`~bench.preflight.TimingModel`); a table still moving ``MOVE_TIMEOUT_FACTOR`` × that plus
-``MOVE_TIMEOUT_MARGIN_S`` after the start is stalled, and the move faults.
+A motion that takes time (a table's move, an Earth simulator's iris or cover) is started under the engine's lock (so
+it never starts after an emergency stop) and waited for outside it, waking at once on an abort or an emergency stop:
+a stop never waits for a motion to end. A move is expected to take what the table's own speeds say
+(:meth:`drivers.interfaces.RotaryTable.expected_motion`, :class:`~bench.preflight.TimingModel`), an iris move what
+its driver says (:meth:`drivers.interfaces.EarthSimulator.expected_iris_move_s`); one still going on
+``MOVE_TIMEOUT_FACTOR`` × that plus ``MOVE_TIMEOUT_MARGIN_S`` after the start is stalled: it is stopped and faults.
 
 The engine emits one event type (:class:`bench.events.BenchEvent`) for what it does and reads (``table``,
 ``source``, ``sensor``, ``point`` …), so a status view can follow a run without asking devices the engine owns;
@@ -41,6 +44,7 @@ from calibration.geometry import zenith_azimuth_from_vector
 from calibration.mount import ForkMount, fork_vectors
 from calibration.stage_geometry import arm_ratio, body_direction_deg
 from drivers.errors import DeviceFault, DeviceTimeout
+from drivers.interfaces import EarthSimulator
 
 from .descriptor import ReadingRecord
 from .events import BenchEvent, Journal
@@ -358,20 +362,23 @@ class RunEngine:
         """Open the shutter, or close it (allowed while latched: it makes the bench safer)."""
         source = self.devices.source
         if open_:
-            self._source_action("open the shutter", source.open_shutter, shutter_open=True)
+            # an Earth simulator's cover travels: _open_shutter starts it under the lock and waits outside
+            self._source_action("open the shutter", self._open_shutter, shutter_open=True, locks_itself=True)
         else:
             self._source_action("close the shutter", source.close_shutter, darker=True, shutter_open=False)
 
-    def _source_action(self, what: str, action, *, darker: bool = False, **implied) -> None:
+    def _source_action(self, what: str, action, *, darker: bool = False, locks_itself: bool = False,
+                       **implied) -> None:
         """A manual lamp or shutter `action`, then the source's status (`implied`: what the action implies when
         the source cannot be read). One that makes the bench `darker` is allowed while latched; any other is
-        refused, also when an emergency stop comes first (:class:`EstopLatched`)."""
+        refused, also when an emergency stop comes first (:class:`EstopLatched`); it is started under the lock,
+        unless it `locks_itself` (it raises :class:`Aborted` itself)."""
         self._manual(what, safe=darker)
         if darker:
             action()
         else:
             try:
-                self._act(action)
+                action() if locks_itself else self._act(action)
             except Aborted:
                 raise EstopLatched(LATCHED) from None
         self._observe_source(**implied)
@@ -597,25 +604,40 @@ class RunEngine:
                 raise Aborted()
 
     def _on_set_disc_radius(self, msg: SetDiscRadius) -> float | None:
-        """Move the Earth simulator's iris to the disc radius and wait until it has settled (the driver's own wait and
-        timeout); answers the radius the source reports [°], checked against the tolerance."""
+        """Move the Earth simulator's iris to the disc radius: started under the lock, waited for outside it (an abort
+        or an emergency stop tells the iris to stop where it is and ends the run at once), for at most
+        MOVE_TIMEOUT_FACTOR × the driver's expected duration + MOVE_TIMEOUT_MARGIN_S; answers the radius the source
+        reports [°], checked against the tolerance."""
         if msg.for_points and all(key in self._done for key in msg.for_points):
             return None  # a resumed run: the readings this radius is for are recorded
-        from drivers.interfaces import EarthSimulator
-
         source = self.devices.source
+        name = getattr(source, "name", "source")
         if not isinstance(source, EarthSimulator):
-            raise DeviceFault(getattr(source, "name", "source"),
-                              "the plan sets a disc radius: the bench's source must be an Earth simulator "
-                              "(devices.source.kind: earth)")
+            raise DeviceFault(name, "the plan sets a disc radius: the bench's source must be an Earth simulator "
+                                    "(devices.source.kind: earth)")
         self._checkpoint()  # no move while paused or held by an interlock
-        self._act(lambda: source.set_disc_radius_deg(msg.radius_deg))
+        expected = float(source.expected_iris_move_s(msg.radius_deg))
+        timeout = MOVE_TIMEOUT_FACTOR * expected + MOVE_TIMEOUT_MARGIN_S
+        self._act(lambda: source.set_disc_radius_deg(msg.radius_deg, wait=False))
+        self._emit("source", iris_moving=True, target_disc_radius_deg=msg.radius_deg, expected_s=expected,
+                   timeout_s=timeout)
+
+        def stuck(elapsed: float) -> DeviceTimeout:
+            try:
+                where = f"it reads {source.disc_radius_deg():.4f}°"
+            except Exception as exc:  # noqa: BLE001 - the timeout must still be reported
+                where = f"its position is unknown ({exc})"
+            return DeviceTimeout(name, f"iris not settled at its target {elapsed:.1f} s after the start of a move to "
+                                       f"{msg.radius_deg:.4f}° that should take {expected:.1f} s (timeout "
+                                       f"{timeout:.1f} s = {MOVE_TIMEOUT_FACTOR:g} × expected + "
+                                       f"{MOVE_TIMEOUT_MARGIN_S:g} s); {where}: stuck? The iris was told to stop.")
+
+        self._await(source.disc_settled, timeout, stuck, stop=("iris", source.stop_iris))
         radius = float(source.disc_radius_deg())
-        self._emit("source", disc_radius_deg=radius, journal=False)
+        self._emit("source", disc_radius_deg=radius, iris_moving=False)
         if not abs(radius - msg.radius_deg) <= msg.tolerance_deg:
-            raise DeviceFault(getattr(source, "name", "source"),
-                              f"the iris stopped at a disc radius of {radius:.4f}°, not {msg.radius_deg:.4f} ± "
-                              f"{msg.tolerance_deg:g}°")
+            raise DeviceFault(name, f"the iris stopped at a disc radius of {radius:.5f}°, not {msg.radius_deg:.5f} ± "
+                                    f"{msg.tolerance_deg:g}°")
         return radius
 
     def _on_lamp_on(self, msg: LampOn) -> None:
@@ -650,11 +672,57 @@ class RunEngine:
         self._journal_writer(BenchEvent("log", self._run_id, {}, f"this plan may stop early ({msg.reason})", True))
 
     def _act(self, action) -> None:
-        """Start an action on the bench unless an abort came first (an e-stop sets its flag under this lock)."""
+        """Start an action on the bench unless an abort came first (an e-stop sets its flag under this lock). The
+        action must return at once: a motion is started here and waited for outside the lock (:meth:`_await`)."""
         with self._lock:
             if self._abort:
                 raise Aborted()
             action()
+
+    def _await(self, done, timeout_s: float, timed_out, *, stop=None) -> None:
+        """Poll `done()` every ``interlocks.poll_s``, outside the lock, until it is true. An abort or an emergency stop
+        wakes the wait at once: `stop` = (what, action) is done (its failure journaled) and :class:`Aborted` raised.
+        Past `timeout_s` of the bench's clock (the wall's while a simulated clock stands still, as a stuck motion
+        makes it at time scale 0) `stop` is done and ``timed_out(elapsed_s)`` raised."""
+        def halt(when: str) -> None:
+            if stop is not None:
+                self._safe(stop[0], stop[1], when)
+
+        wall0, bench0 = time.monotonic(), self.clock()
+        while not done():
+            if self._abort:
+                halt("emergency stop" if self._estop else "abort")
+                raise Aborted()
+            bench = self.clock() - bench0
+            elapsed = bench if bench > 0 else time.monotonic() - wall0
+            if elapsed > timeout_s:
+                halt("timeout")
+                raise timed_out(elapsed)
+            with self._lock:
+                if not self._abort:
+                    self._wake.wait(self.interlocks.poll_s)
+        if self._abort:
+            raise Aborted()
+
+    def _open_shutter(self) -> None:
+        """Open the source's shutter. An Earth simulator's cover travels for a second or more (stuck: until its
+        ``cover_timeout_s``): it is started under the lock and waited for outside it; a sun simulator's shutter opens
+        at once."""
+        source = self.devices.source
+        if not isinstance(source, EarthSimulator):
+            self._act(source.open_shutter)
+            return
+        self._act(lambda: source.open_shutter(wait=False))
+
+        def stuck(elapsed: float) -> DeviceFault:
+            try:
+                where = f"it reads {source.cover_state()}"
+            except Exception as exc:  # noqa: BLE001 - the fault must still be reported
+                where = f"its state is unknown ({exc})"
+            return DeviceFault(getattr(source, "name", "source"),
+                               f"the cover did not open within {elapsed:.1f} s ({where}): stuck?")
+
+        self._await(lambda: source.cover_state() == "OPEN", source.cover_timeout_s, stuck)
 
     def _timing_model(self) -> TimingModel | None:
         """The table's speeds as it reports them (asked once per run), None when it cannot tell both axes'."""
@@ -902,7 +970,7 @@ class RunEngine:
                 if self._state is EngineState.PAUSING:  # a resume before the checkpoint was reached
                     self._to(EngineState.RUNNING)
             if self._shutter_wanted and not self._shutter_open:
-                self._act(self.devices.source.open_shutter)
+                self._open_shutter()
                 self._shutter_open = True
                 self._observe_source(shutter_open=True)
             return

@@ -131,13 +131,15 @@ def _phases(table: CsvTable) -> tuple[np.ndarray, np.ndarray]:
     return out[0], out[1]
 
 
-def _pair_scans(roll, pitch, radius, repeat, check, cone) -> np.ndarray:
-    """A scan id per row: the k-th row of cone 1 and the k-th of cone 2 at one pose, radius, repeat and kind."""
+def _pair_scans(roll, pitch, radius, repeat, check, cone, sensor=None) -> np.ndarray:
+    """A scan id per row: the k-th row of cone 1 and the k-th of cone 2 of one sensor at one pose, radius, repeat and
+    kind (`sensor`: each row's sensor id, None: one sensor)."""
     seen: dict = {}
     scan = np.empty(cone.size, int)
     next_id = 0
     for i in range(cone.size):
-        key = (round(roll[i], 6), round(pitch[i], 6), round(radius[i], 6), int(repeat[i]), bool(check[i]))
+        key = (None if sensor is None else sensor[i], round(roll[i], 6), round(pitch[i], 6), round(radius[i], 6),
+               int(repeat[i]), bool(check[i]))
         counts = seen.setdefault(key, {1: [], 2: []})
         k = len(counts[int(cone[i])])
         other = counts[3 - int(cone[i])]
@@ -184,23 +186,28 @@ def read_horizon_frames(path, *, sensor_id: str | None = None) -> HorizonFrames:
                                                                                                      int)
     check = flag_column(table, "check")
     temperature = temperature_column(table) if table.has("temperature_c") else None
-    if table.has("scan"):
-        scan = table.numbers("scan", integer=True).astype(int)
-    else:
-        scan = _pair_scans(roll, pitch, radius, repeat, check, cone)
-    row_id = np.arange(1, len(table.rows) + 1)
+    scan = table.numbers("scan", integer=True).astype(int) if table.has("scan") else None
     design = header_numbers(table, DESIGN_KEYS)
+    # the chosen sensor's rows only, before the scans are paired and checked: each sensor of a batch numbers its
+    # own scans (scan 0 of sensor A is not scan 0 of sensor B)
+    index = np.flatnonzero(keep)
+    roll, pitch, cone, phase_out, phase_in, radius, repeat, check = (a[index] for a in (
+        roll, pitch, cone, phase_out, phase_in, radius, repeat, check))
+    temperature = None if temperature is None else temperature[index]
+    if scan is None:
+        ids = table.texts("sensor_id") if table.has("sensor_id") else None
+        scan = _pair_scans(roll, pitch, radius, repeat, check, cone, None if ids is None else [ids[i] for i in index])
+    else:
+        scan = scan[index]
+    row_id = index + 1  # the file's data row, whatever rows of other sensors lie between
     try:
         data = HorizonBenchData(roll, pitch, cone.astype(int), phase_out, phase_in, radius, scan=scan, repeat=repeat,
                                 check=check, sensor_id=sensor_id, row_id=row_id,
                                 ifov_half_angle_deg=design.get("ifov_half_angle_deg"))
     except BenchDataError as exc:  # what the checks above did not catch (a scan with two rows of one cone)
-        row = None if exc.row is None else exc.row + 1
+        row = None if exc.row is None else int(row_id[exc.row])
         raise DataFileError(table.path, str(exc), row=row, line=None if row is None else table.lines[row - 1],
                             column=exc.column if exc.column in table.header else None) from None
-    if not keep.all():
-        data = data.subset(keep)
-        temperature = None if temperature is None else temperature[keep]
     return HorizonFrames(data, table.path, {i + 1: line for i, line in enumerate(table.lines)}, temperature)
 
 

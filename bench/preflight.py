@@ -1,8 +1,9 @@
 """Preflight: expand a plan without hardware, check every move against the limits, count, estimate.
 
 The plan is driven by a dry executor that answers like the engine would (the exposure asked for, readings
-with no position), so adaptive plans expand too. A plan with any violation is refused, with the list of
-every violation, before anything moves (research note anchors-orchestration, lesson 9).
+with no position), so adaptive plans expand too. Every pose is checked against the table's limits and every disc
+radius a plan sets against the Earth simulator's (:func:`disc_radius_check`). A plan with any violation is refused,
+with the list of every violation, before anything moves (research note anchors-orchestration, lesson 9).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from dataclasses import dataclass, field
 
 from calibration.design_of_experiments import move_time_s
 from drivers.errors import LimitError
+from drivers.interfaces import EarthSimulator
 
 from .messages import (
     Capture,
@@ -138,8 +140,28 @@ class PreflightReport:
         return not self.violations
 
 
+def disc_radius_check(source):
+    """The check of a plan's disc radii on a bench whose source is `source`: an Earth simulator's soft limits
+    (:meth:`drivers.interfaces.EarthSimulator.check_disc_radius`); on any other source every disc radius is refused.
+
+    Returns
+    -------
+    callable (radius_deg) -> None
+        Raises :class:`~drivers.errors.LimitError` for a radius the bench cannot set.
+    """
+    if isinstance(source, EarthSimulator):
+        return source.check_disc_radius
+
+    def refuse(radius_deg: float) -> None:
+        raise LimitError(getattr(source, "name", "source"),
+                         f"the plan sets a disc radius of {radius_deg:.4f}°, but the bench's source is not an Earth "
+                         "simulator (devices.source.kind: earth)")
+    return refuse
+
+
 def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_reading=None,
-              exposure_ms: float = 4.0, extra_violations=(), reading_s: float | None = None) -> PreflightReport:
+              exposure_ms: float = 4.0, extra_violations=(), reading_s: float | None = None,
+              check_radius=None) -> PreflightReport:
     """Expand `plan` with a dry executor.
 
     Parameters
@@ -158,10 +180,13 @@ def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_rea
     reading_s : float, optional
         How long one reading takes [s] (the family's :attr:`~bench.families.Family.reading_s`: a scanning sensor's
         revolution); default the exposure plus the frame overhead.
+    check_radius : callable (radius_deg) -> None, optional
+        Raises :class:`~drivers.errors.LimitError` for a disc radius (:class:`~bench.messages.SetDiscRadius`) the
+        bench cannot set (:func:`disc_radius_check`); default: radii are not checked (no bench at hand).
     """
     points: list[Point] = []
     violations = list(extra_violations)
-    seen_poses = set()
+    seen_poses, seen_radii = set(), set()
     n_frames = n_moves = 0
     duration = 0.0
     pose = (0.0, 0.0)
@@ -211,6 +236,13 @@ def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_rea
         elif isinstance(msg, SetDiscRadius):
             duration += timing.disc_settle_s
             answer = msg.radius_deg
+            if check_radius is not None and msg.radius_deg not in seen_radii:
+                seen_radii.add(msg.radius_deg)
+                try:
+                    check_radius(msg.radius_deg)
+                except LimitError as exc:
+                    violations.append(f"disc radius {msg.radius_deg:.4f}° (for {len(msg.for_points)} point(s)): "
+                                      f"{exc}")
         elif isinstance(msg, WaitWarm):
             duration += timing.warmup_s
             warmup += timing.warmup_s
@@ -223,12 +255,13 @@ def preflight(plan: Plan, *, check, timing: TimingModel = TimingModel(), dry_rea
 
 
 def preflight_campaign(campaign, *, check, timing: TimingModel = TimingModel(), mount=None,
-                       extra_violations=()) -> PreflightReport:
+                       extra_violations=(), check_radius=None) -> PreflightReport:
     """Dry-run the plan a campaign names, for one sensor, with the readings its sensor family answers dry
-    (`mount`: the table's kinematics, :func:`bench.families.table_mount`)."""
+    (`mount`: the table's kinematics, :func:`bench.families.table_mount`; `check_radius`: the source's disc radii,
+    :func:`disc_radius_check`)."""
     from .families import family_of_plan
 
     family = family_of_plan(campaign.plan)
     return preflight(family.make_plan(campaign, timing=timing, mount=mount), check=check, timing=timing,
                      dry_reading=lambda i: family.dry_reading(i, campaign), extra_violations=extra_violations,
-                     reading_s=family.reading_s)
+                     reading_s=family.reading_s, check_radius=check_radius)

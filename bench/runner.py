@@ -26,7 +26,7 @@ from .families import family_of_sensor, journal_fit, table_mount
 from .families.cmos import EDGE_FLAGS
 from .interlocks import SIMULATED_TIMING
 from .plans import alignment_violations
-from .preflight import PreflightReport, TimingModel, preflight_campaign, timing_from_table
+from .preflight import PreflightReport, TimingModel, disc_radius_check, preflight_campaign, timing_from_table
 
 
 class ResumeRefused(Exception):
@@ -102,7 +102,8 @@ def timing_model(session: Session) -> TimingModel:
 
 
 def check_campaign(campaign: Campaign, session: Session) -> PreflightReport:
-    """Expand the campaign's plan, check every move and the alignment, count the points, estimate the time."""
+    """Expand the campaign's plan, check every move, every disc radius (the Earth simulator's soft limits) and the
+    alignment, count the points, estimate the time."""
     geometry = session.bench_file.bench_geometry()
     timing = timing_model(session)
     family = session.engine.family
@@ -111,6 +112,7 @@ def check_campaign(campaign: Campaign, session: Session) -> PreflightReport:
         f"(its plans: {', '.join(family.plans)})"]
     report = preflight_campaign(campaign, check=session.devices.table.check, timing=timing,
                                 mount=session_mount(session),
+                                check_radius=disc_radius_check(session.devices.source),
                                 extra_violations=wrong + alignment_violations(campaign.alignment, geometry))
     return dataclasses.replace(report, duration_s=report.duration_s * len(campaign.sensors))
 

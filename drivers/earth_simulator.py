@@ -12,7 +12,11 @@ dropped). Every set is followed by ``SYST:ERR?`` read until empty; an entry rais
 its codes. Queries are asked again once after a garbled or cut reply (not ``SYST:ERR?``, which pops what it reads);
 sets are never re-sent. Limits (the iris's soft limits, the heater's setpoints) are checked before anything is
 sent; a motion (iris, cover) that does not finish within twice its expected time plus a margin raises a typed
-error naming where it stopped.
+error naming where it stopped. Either motion can be started without waiting (``wait=False``) and polled
+(:meth:`EarthSimulatorSource.disc_settled`, :meth:`~EarthSimulatorSource.cover_state`), so the run engine never waits
+for one with its lock held; ``IRIS:STOP`` stops the iris where it is (:meth:`~EarthSimulatorSource.stop_iris`). The
+iris counts as settled once its controller says it stopped AND it reads within a tolerance of the target this driver
+sent: a controller that raises its moving flag late cannot end a wait at once.
 
 A client of other people's (PyVISA with pyvisa-py) reaches the simulator at ``TCPIP0::<host>::<port>::SOCKET`` with
 read and write termination ``"\\n"`` (``sunbench sim`` prints it).
@@ -41,6 +45,9 @@ DEFAULT_TEMPERATURE_LIMITS_K = (230.0, 350.0)
 DEFAULT_DISC_K = 290.0  # the disc's setpoint at lamp_on [K]: a warm Earth's 14–16 µm brightness temperature
 DEFAULT_STANDBY_K = 260.0
 MOTION_MARGIN_S = 5.0  # added to twice a motion's expected time before it counts as stuck [s]
+#: How close to its target a stopped iris must read to count as settled [°]: the simulated controller takes a target
+#: to 1e-4°; a real iris's deadband is of that order
+DEFAULT_IRIS_TOLERANCE_DEG = 0.005
 
 STATUS_HEATER, STATUS_SETTLED, STATUS_IRIS_MOVING, STATUS_COVER_OPEN = 0x01, 0x02, 0x04, 0x08
 STATUS_COVER_MOVING, STATUS_HEATER_FAULT = 0x10, 0x20
@@ -72,6 +79,8 @@ class EarthSimulatorSource(ScpiErrorQueue, EarthSimulator):
         Pause between polls while a motion runs [s].
     cover_timeout_s : float
         How long the cover may take to open or close before it counts as stuck [s].
+    iris_tolerance_deg : float
+        How close to its target the stopped iris must read to count as settled [°].
     pause : callable
         ``pause(poll_s)`` between polls (``time.sleep``; a test may pass one that counts).
     clock : callable
@@ -84,7 +93,8 @@ class EarthSimulatorSource(ScpiErrorQueue, EarthSimulator):
     def __init__(self, port: Port, *, radius_limits_deg=DEFAULT_RADIUS_LIMITS_DEG,
                  temperature_limits_k=DEFAULT_TEMPERATURE_LIMITS_K, disc_temperature_k: float = DEFAULT_DISC_K,
                  standby_temperature_k: float = DEFAULT_STANDBY_K, retries: int = 1, poll_s: float = 0.05,
-                 cover_timeout_s: float = 10.0, pause=time.sleep, clock=time.monotonic, name: str | None = None):
+                 cover_timeout_s: float = 10.0, iris_tolerance_deg: float = DEFAULT_IRIS_TOLERANCE_DEG,
+                 pause=time.sleep, clock=time.monotonic, name: str | None = None):
         self.port = port
         self.name = name or port.name
         self.radius_limits = Limits(*radius_limits_deg)
@@ -97,9 +107,13 @@ class EarthSimulatorSource(ScpiErrorQueue, EarthSimulator):
         self.retries = int(retries)
         self.poll_s = float(poll_s)
         self.cover_timeout_s = float(cover_timeout_s)
+        if not (math.isfinite(iris_tolerance_deg) and iris_tolerance_deg > 0):
+            raise ValueError(f"`iris_tolerance_deg` must be > 0, got {iris_tolerance_deg}")
+        self.iris_tolerance_deg = float(iris_tolerance_deg)
         self.pause = pause
         self.clock = clock
         self._speed_deg_s: float | None = None
+        self._iris_target_deg: float | None = None  # the radius this driver last sent; None: ask the controller
 
     # -- exchanges ------------------------------------------------------------------------------------------
     def _write(self, command: str) -> None:
@@ -195,15 +209,17 @@ class EarthSimulatorSource(ScpiErrorQueue, EarthSimulator):
         return self._ask("MEAS:BACK?", self._float)
 
     # -- the cover (the "shutter") --------------------------------------------------------------------------
-    def _cover(self, state: str, *, timeout_s: float | None) -> None:
+    def _cover(self, state: str, *, timeout_s: float | None, wait: bool = True) -> None:
         timeout_s = self.cover_timeout_s if timeout_s is None else timeout_s
         self._set(f"COV {'OPEN' if state == 'OPEN' else 'CLOS'}")
-        self._wait(lambda: self.cover_state() == state, f"cover {'opening' if state == 'OPEN' else 'closing'}",
-                   timeout_s, lambda: f"the cover reads {self.cover_state()}", DeviceFault)
+        if wait:
+            self._wait(lambda: self.cover_state() == state, f"cover {'opening' if state == 'OPEN' else 'closing'}",
+                       timeout_s, lambda: f"the cover reads {self.cover_state()}", DeviceFault)
 
-    def open_shutter(self, *, timeout_s: float | None = None) -> None:
-        """Open the cold cover and wait until it reads OPEN (a stuck cover raises :class:`DeviceFault`)."""
-        self._cover("OPEN", timeout_s=timeout_s)
+    def open_shutter(self, *, wait: bool = True, timeout_s: float | None = None) -> None:
+        """Open the cold cover; with `wait`, until it reads OPEN (a stuck cover raises :class:`DeviceFault`), without,
+        return once it is told to (then poll :meth:`cover_state`)."""
+        self._cover("OPEN", timeout_s=timeout_s, wait=wait)
 
     def close_shutter(self, *, timeout_s: float | None = None) -> None:
         """Close the cold cover and wait until it reads CLOSED (a stuck cover raises :class:`DeviceFault`)."""
@@ -237,10 +253,20 @@ class EarthSimulatorSource(ScpiErrorQueue, EarthSimulator):
 
     # -- the iris -------------------------------------------------------------------------------------------
     def iris_speed_deg_s(self) -> float:
-        """The iris's speed [°/s] (``IRIS:SPE?``, asked once)."""
+        """The iris's speed [°/s] (``IRIS:SPE?``, asked once); a speed that is not positive raises
+        :class:`ProtocolError` (no move time can be told from it)."""
         if self._speed_deg_s is None:
-            self._speed_deg_s = self._ask("IRIS:SPE?", self._float)
+            speed = self._ask("IRIS:SPE?", self._float)
+            if not speed > 0:
+                raise ProtocolError(self.name, f"'IRIS:SPE?': the iris's speed must be positive, the controller "
+                                               f"answered {speed:g} deg/s")
+            self._speed_deg_s = speed
         return self._speed_deg_s
+
+    @property
+    def radius_limits_deg(self) -> tuple[float, float]:
+        """The iris's soft limits (low, high) [°] (the `radius_limits_deg` this driver was given)."""
+        return self.radius_limits.low_deg, self.radius_limits.high_deg
 
     def iris_limits_deg(self) -> tuple[float, float]:
         """The iris's own limits [°] (``IRIS:LIM?``)."""
@@ -255,9 +281,11 @@ class EarthSimulatorSource(ScpiErrorQueue, EarthSimulator):
         returns once it has settled at the target; a move not done within `timeout_s` (default twice the expected
         time plus 5 s) raises :class:`DeviceTimeout` naming the iris's position."""
         self.radius_limits.check(self.name, radius_deg)
-        if timeout_s is None:
+        if wait and timeout_s is None:
             timeout_s = 2.0 * self.expected_iris_move_s(radius_deg) + MOTION_MARGIN_S
+        self._iris_target_deg = None  # unknown until the controller has taken it
         self._set(f"IRIS {radius_deg:.4f}")
+        self._iris_target_deg = float(radius_deg)
         if wait:
             self._wait(self.disc_settled, f"iris move to {radius_deg:.4f} deg", timeout_s,
                        lambda: f"at {self.disc_radius_deg():.4f} deg")
@@ -266,6 +294,19 @@ class EarthSimulatorSource(ScpiErrorQueue, EarthSimulator):
         """The disc's angular radius as the iris reports it [°] (``IRIS?``)."""
         return self._ask("IRIS?", self._float)
 
+    def iris_target_deg(self) -> float:
+        """The target the controller holds [°] (``IRIS:TARG?``)."""
+        return self._ask("IRIS:TARG?", self._float)
+
     def disc_settled(self) -> bool:
-        """The iris has stopped (``IRIS:MOV?`` is 0)."""
-        return not self._ask("IRIS:MOV?", self._flag)
+        """The iris has stopped (``IRIS:MOV?`` is 0) and reads (``IRIS?``) within `iris_tolerance_deg` of its target:
+        the radius this driver last sent, else (none sent, or stopped since) the one the controller holds."""
+        if self._ask("IRIS:MOV?", self._flag):
+            return False
+        target = self._iris_target_deg if self._iris_target_deg is not None else self.iris_target_deg()
+        return abs(self.disc_radius_deg() - target) <= self.iris_tolerance_deg
+
+    def stop_iris(self) -> None:
+        """Stop the iris where it is (``IRIS:STOP``: the controller's target becomes its position)."""
+        self._iris_target_deg = None
+        self._set("IRIS:STOP")

@@ -596,13 +596,52 @@ class EarthSimulator(SunSimulator):
     As a :class:`SunSimulator`: ``lamp_on`` = heater on to the disc setpoint, ``status().warm`` = the disc's
     temperature has settled, ``open_shutter``/``close_shutter`` = the cold cover, ``standby`` = cover closed and
     heater at its standby setpoint, ``lamp_off`` = heater off. The iris sets the disc's angular radius.
+
+    Its two motions (the iris, the cover) take seconds to a minute, so each can be started without waiting
+    (``wait=False``) and polled (:meth:`disc_settled`, :meth:`cover_state`): the run engine starts a motion under its
+    lock and waits for it outside, so an emergency stop never waits for an iris or a cover.
+
+    Attributes
+    ----------
+    cover_timeout_s : float
+        How long the cover may take to open or close before it counts as stuck [s].
     """
 
+    cover_timeout_s: float
+
+    @property
     @abstractmethod
-    def set_disc_radius_deg(self, radius_deg: float) -> None:
-        """Move the iris to `radius_deg` [°] and wait until it has settled; soft limits are checked first
-        (:class:`~drivers.errors.LimitError`), a move that does not finish in time raises
-        :class:`~drivers.errors.DeviceTimeout`."""
+    def radius_limits_deg(self) -> tuple[float, float]:
+        """The iris's soft limits (low, high) [°]: the disc radii the bench allows."""
+
+    def check_disc_radius(self, radius_deg: float) -> None:
+        """Raise :class:`~drivers.errors.LimitError` for a disc radius outside :attr:`radius_limits_deg` (as
+        :meth:`set_disc_radius_deg` would, before anything is sent); a preflight checks a plan's radii with it."""
+        Limits(*self.radius_limits_deg).check(self.name, radius_deg)
+
+    @abstractmethod
+    def set_disc_radius_deg(self, radius_deg: float, *, wait: bool = True, timeout_s: float | None = None) -> None:
+        """Move the iris to `radius_deg` [°]; the soft limits are checked first (:class:`~drivers.errors.LimitError`,
+        nothing sent). With `wait`, returns once it has settled (:meth:`disc_settled`), and a move not done within
+        `timeout_s` (default: the driver's, from :meth:`expected_iris_move_s`) raises
+        :class:`~drivers.errors.DeviceTimeout`; without, returns once the move is started."""
+
+    @abstractmethod
+    def expected_iris_move_s(self, radius_deg: float) -> float:
+        """How long a move from where the iris stands to `radius_deg` should take [s]."""
+
+    @abstractmethod
+    def stop_iris(self) -> None:
+        """Stop the iris where it is (its target becomes its position)."""
+
+    @abstractmethod
+    def open_shutter(self, *, wait: bool = True, timeout_s: float | None = None) -> None:
+        """Open the cold cover; with `wait`, return once it reads OPEN (a cover stuck past `timeout_s`, default
+        :attr:`cover_timeout_s`, raises :class:`~drivers.errors.DeviceFault`); without, once it is told to open."""
+
+    @abstractmethod
+    def cover_state(self) -> str:
+        """The cold cover: ``"OPEN"``, ``"CLOSED"`` or ``"MOVING"``."""
 
     @abstractmethod
     def disc_radius_deg(self) -> float:
@@ -610,7 +649,8 @@ class EarthSimulator(SunSimulator):
 
     @abstractmethod
     def disc_settled(self) -> bool:
-        """The iris has stopped at its target."""
+        """The iris has stopped, at its target (within the driver's tolerance): a controller that reports its motion
+        late must not end a wait at once."""
 
     @abstractmethod
     def set_disc_temperature_k(self, kelvin: float) -> None:

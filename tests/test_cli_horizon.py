@@ -221,3 +221,33 @@ def test_sim_serves_the_horizon_bench_and_its_drivers_talk_to_it_over_tcp(tmp_pa
     finally:
         proc.send_signal(signal.SIGINT)
         proc.wait(timeout=20)
+
+
+def test_the_headers_model_radius_is_the_fits_to_a_few_microdegrees(workdir, fitted):
+    """The header's ρ − b + Δρ (b's leading term cot ρ · a²/6 with a the IFOV half-angle in radians, as its comment
+    says) against the fit's model (the exact overlap of the IFOV's and the disc's caps,
+    calibration.horizon.bench_fit.model_disc_radius_deg) over the iris's range: within 3e-6° at the design's 2° (the
+    next term, ≈ 2e-4 · b, peaks at 2.3e-6° at 50°), a thousandth of b and far below the phases' noise."""
+    from calibration.horizon.bench_fit import model_disc_radius_deg
+
+    _, cal, header = fitted
+    text = header.read_text()
+    assert "a = radians(SUNBENCH_HORIZON_IFOV_HALF_ANGLE_DEG)" in text and "a^2 / 6 [rad]" in text
+    radii = [50.0, 64.3, 67.9, 70.2, 78.0]
+    program = workdir / "radius.c"
+    program.write_text(f'#include <stdio.h>\n#include "{header}"\n'
+                       "int main(void) { const double rho[] = {" + ", ".join(map(repr, radii)) + "}; int i;\n"
+                       '  for (i = 0; i < 5; i++) printf("%.17g\\n", sunbench_horizon_model_radius_deg(rho[i]));\n'
+                       "  return 0; }\n")
+    exe = workdir / "radius"
+    done = subprocess.run([c_compiler(), "-std=c99", "-Wall", "-Wextra", "-Werror", str(program), "-o", str(exe),
+                           "-lm"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    got = np.array([float(v) for v in subprocess.run([str(exe)], capture_output=True, text=True,
+                                                     check=True).stdout.split()])
+    p = sensor_parameters_from_document(json.loads(cal.read_text()))
+    want = model_disc_radius_deg(np.array(radii), p)
+    bias = np.array(radii) + p.radius_bias_deg - want  # b itself: 2.5 … 9.8 mdeg
+    print(f"\nb {bias.round(6).tolist()} °; header − fit {(got - want).tolist()} °")
+    assert p.ifov_half_angle_deg == 2.0 and bias.min() > 2e-3
+    assert np.abs(got - want).max() < 3e-6

@@ -144,3 +144,75 @@ def test_the_ifov_half_angle_travels_in_a_header_comment(tmp_path, data):
     path.write_text("# ifov_half_angle_deg: 45\n" + body)
     with pytest.raises(DataFileError, match="IFOV half-angle"):
         read_horizon_csv(path)
+
+
+# --- a file of several sensors ---------------------------------------------------------------------------------------
+
+def _two_sensors(data, *, scan: bool, swap_cones: bool = False) -> str:
+    """Sensors A and B measured at the same poses, their rows interleaved (A's scan, then B's), each numbering its own
+    scans from 0; B's phases 1° on from A's. `swap_cones`: B's rows of a scan in the order cone 2, cone 1 (a scan's
+    rows of A then stand round B's: A cone 1, B cone 2, B cone 1, A cone 2)."""
+    header = "roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg,repeat,check,sensor_id" \
+        + (",scan" if scan else "")
+
+    def row(i, sensor, shift):
+        cells = [repr(float(data.roll_deg[i])), repr(float(data.pitch_deg[i])), str(data.cone[i])]
+        cells += ["" if not np.isfinite(p) else repr(float(np.mod(p + shift, 360.0)))
+                  for p in (data.phase_out_deg[i], data.phase_in_deg[i])]
+        cells += [repr(float(data.disc_radius_deg[i])), str(data.repeat[i]), str(int(data.check[i])), sensor]
+        return ",".join(cells + ([str(data.scan[i])] if scan else []))
+
+    lines = [header]
+    for s in np.unique(data.scan):
+        one, two = np.flatnonzero(data.scan == s)
+        if swap_cones:
+            lines += [row(one, "A", 0.0), row(two, "B", 1.0), row(one, "B", 1.0), row(two, "A", 0.0)]
+        else:
+            lines += [row(one, "A", 0.0), row(two, "A", 0.0), row(one, "B", 1.0), row(two, "B", 1.0)]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("scan", [True, False])
+def test_each_sensor_of_a_batch_is_read_with_its_own_scans(tmp_path, data, scan):
+    """Two sensors in one file, each numbering its scans from 0: the chosen sensor's rows are taken before its scans
+    are paired and checked, so neither refuses as "scan 0 has two rows of cone 1", and each keeps its own phases,
+    its cones of a scan together and its rows named by the file's row."""
+    path = tmp_path / "two.csv"
+    path.write_text(_two_sensors(data, scan=scan))
+    for sensor, shift, first in (("A", 0.0, 1), ("B", 1.0, 3)):
+        back = read_horizon_csv(path, sensor_id=sensor)
+        assert back.sensor_id == sensor and len(back) == len(data)
+        assert np.allclose(back.phase_out_deg, np.mod(data.phase_out_deg + shift, 360.0), atol=1e-12)
+        assert np.array_equal(back.scan[:, None] == back.scan[None, :], data.scan[:, None] == data.scan[None, :])
+        assert back.row_id[:2].tolist() == [first, first + 1] and back.row_id[2] == first + 4
+    with pytest.raises(DataFileError, match="holds 2 sensors"):
+        read_horizon_csv(path)
+
+
+def test_without_a_scan_column_the_cones_are_paired_within_one_sensor(tmp_path, data):
+    """Rows of two sensors at the same pose and repeat, in the order A cone 1, B cone 2, B cone 1, A cone 2: each
+    sensor's cone 1 and cone 2 make one scan, never A's cone 1 with B's cone 2."""
+    from bench.horizon_datafile import _pair_scans
+
+    path = tmp_path / "two.csv"
+    path.write_text(_two_sensors(data, scan=False, swap_cones=True))
+    for sensor in ("A", "B"):
+        back = read_horizon_csv(path, sensor_id=sensor)
+        assert np.array_equal(back.scan[:, None] == back.scan[None, :], data.scan[:, None] == data.scan[None, :])
+        assert np.unique(back.scan).size == len(data) // 2
+    # the pairing itself keys on the sensor: the same four rows (cones 1, 2, 1, 2) taken as one sensor's, they pair
+    # in order; as A, B, B, A, each sensor's two rows pair
+    pose = [np.zeros(4)] * 3 + [np.zeros(4, int), np.zeros(4, bool), np.array([1, 2, 1, 2])]
+    assert _pair_scans(*pose).tolist() == [0, 0, 1, 1]
+    assert _pair_scans(*pose, ["A", "B", "B", "A"]).tolist() == [0, 1, 1, 0]
+
+
+def test_a_duplicate_scan_of_the_chosen_sensor_names_its_row_in_the_file(tmp_path):
+    path = tmp_path / "dup.csv"
+    path.write_text("roll_deg,pitch_deg,cone,phase_out_deg,phase_in_deg,disc_radius_deg,scan,sensor_id\n"
+                    "0,0,1,66,294,68,0,A\n0,0,1,66,294,68,0,B\n0,0,2,66,294,68,0,B\n1,0,1,66,294,68,0,B\n"
+                    "0,0,2,66,294,68,0,A\n")
+    assert len(read_horizon_csv(path, sensor_id="A")) == 2
+    with pytest.raises(DataFileError) as info:
+        read_horizon_csv(path, sensor_id="B")
+    assert "scan 0 has two rows of cone 1" in str(info.value) and (info.value.row, info.value.line) == (4, 5)

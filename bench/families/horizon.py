@@ -186,11 +186,12 @@ def make_plan(campaign, *, timing=None, mount=None):
 
 
 # --- fits when a run ends ---------------------------------------------------------------------------------------------
-def bench_data(catalogue, run_ids, *, sensor_id: str | None = None):
+def bench_data(catalogue, run_ids, *, sensor_id: str | None = None, ifov_half_angle_deg: float | None = None):
     """The horizon bench data of runs (:class:`calibration.horizon.bench_fit.HorizonBenchData`): two rows (cones) per
     ok reading, the roll and pitch from the body direction the engine recorded, the phases 360° · t / T (a missing
     edge, or a cone whose pulse saturated, NaN), the disc radius the reading recorded, check rows from the check stage,
-    the scan and the rows named by the reading's id."""
+    the scan and the rows named by the reading's id; `ifov_half_angle_deg` the sensor's IFOV half-angle α as its
+    IDENTIFY reported it (:func:`recorded_ifov_half_angle_deg`; None: not recorded, the fit takes the design's)."""
     from calibration.errors import InsufficientDataError
     from calibration.horizon.bench_fit import HorizonBenchData
 
@@ -214,25 +215,66 @@ def bench_data(catalogue, run_ids, *, sensor_id: str | None = None):
         raise InsufficientDataError(f"runs {list(run_ids)} recorded no usable scan")
     data = HorizonBenchData(rows["roll"], rows["pitch"], rows["cone"], rows["out"], rows["in"], rows["radius"],
                             scan=rows["scan"], repeat=rows["repeat"], check=rows["check"], sensor_id=sensor_id,
-                            row_id=rows["id"])
+                            row_id=rows["id"], ifov_half_angle_deg=ifov_half_angle_deg)
     return data, np.array(rows["t"], float)
 
 
-def fit_inputs(session):
-    """Nothing of the bench: the fit starts from the design sensor."""
-    return None
+#: The run value (:meth:`bench.catalogue.Catalogue.set_run_value`) under which a run keeps the IFOV half-angle α [°]
+#: its sensor's IDENTIFY reported: the crossing model's curvature bias b(ρ, α) (calibration.horizon.bench_fit)
+IFOV_KEY = "ifov_half_angle_deg"
+
+
+def fit_inputs(session) -> dict | None:
+    """What the fit needs of the bench: the IFOV half-angle α [°] the sensor's IDENTIFY reports
+    (:class:`drivers.horizon_sensor.HorizonIdentity`), ``{"ifov_half_angle_deg": α}``; None when the sensor does not
+    tell it (the fit then takes the design's 2°). The module's identity as the runner last asked it (it checks the
+    serial before each run); the wire's float32 rounded to 6 decimals (1.7, not 1.70000005)."""
+    sensor = session.devices.sensor
+    identity = getattr(sensor, "identity", None)
+    if identity is None:
+        identity = sensor.identify()
+    alpha = getattr(identity, "ifov_half_angle_deg", None)
+    if alpha is None or not np.isfinite(alpha):
+        return None
+    return {IFOV_KEY: round(float(alpha), 6)}
+
+
+def recorded_ifov_half_angle_deg(catalogue, run_ids) -> float | None:
+    """The IFOV half-angle α [°] the runs kept (:data:`IFOV_KEY`, each run's fit at its end keeps it), None when none
+    did (a run that never reached its end).
+
+    Raises
+    ------
+    BenchDataError
+        The runs kept different values: their scans are not of one sensor design.
+    """
+    from calibration.errors import BenchDataError
+
+    values = {run_id: catalogue.run_value(run_id, IFOV_KEY) for run_id in run_ids}
+    distinct = sorted({float(v) for v in values.values() if v is not None})
+    if len(distinct) > 1:
+        listed = ", ".join(f"{v:g}°" for v in distinct)
+        raise BenchDataError(f"runs {list(values)} recorded different IFOV half-angles ({listed}): their scans are not "
+                             "of one sensor design; take them one at a time", column=IFOV_KEY)
+    return distinct[0] if distinct else None
 
 
 def fit_run(catalogue, run_id: int, campaign, inputs=None, journal=None) -> list:
     """Fit the sensor's own errors to the run's lineage (:func:`bench.horizon_datafile.fit_horizon`), keep the
     document in the catalogue and journal what it found: the parameters ± 1σ, the roll and pitch at the check points
-    and held out by radius, the rejected edges and the warnings."""
+    and held out by radius, the rejected edges and the warnings. The IFOV half-angle of `inputs`
+    (:func:`fit_inputs`) is kept as the run's value :data:`IFOV_KEY` first, so the fit, an export and a later re-fit
+    model the sensor's own IFOV."""
     from ..horizon_datafile import fit_horizon, horizon_calibration_file, horizon_fit_summary, horizon_metrics
     from ..runner import software_version
 
     journal = journal or (lambda kind, message: catalogue.log_event(run_id, kind, message))
     run = catalogue.run(run_id)
-    data, _ = bench_data(catalogue, catalogue.lineage(run_id), sensor_id=run["sensor_id"])
+    if isinstance(inputs, dict) and inputs.get(IFOV_KEY) is not None:  # kept, so an export and a re-fit find it
+        catalogue.set_run_value(run_id, IFOV_KEY, float(inputs[IFOV_KEY]))
+    lineage = catalogue.lineage(run_id)
+    data, _ = bench_data(catalogue, lineage, sensor_id=run["sensor_id"],
+                         ifov_half_angle_deg=recorded_ifov_half_angle_deg(catalogue, lineage))
     fit = fit_horizon(data)
     document = horizon_calibration_file(fit, source=f"run {run_id}", software=software_version(), created=False)
     catalogue.add_calibration(run_id, METHOD, document, horizon_metrics(fit), True)
@@ -243,8 +285,9 @@ def fit_run(catalogue, run_id: int, campaign, inputs=None, journal=None) -> list
 def export_csv(catalogue, run_ids, target, sensor_id: str | None) -> None:
     from ..horizon_datafile import write_horizon_csv
 
-    data, temperature = bench_data(catalogue, run_ids, sensor_id=sensor_id)
-    write_horizon_csv(target, data, temperature_c=temperature)
+    data, temperature = bench_data(catalogue, run_ids, sensor_id=sensor_id,
+                                   ifov_half_angle_deg=recorded_ifov_half_angle_deg(catalogue, run_ids))
+    write_horizon_csv(target, data, temperature_c=temperature)  # α, when kept, as its `# ifov_half_angle_deg` line
 
 
 def c_header(document: dict) -> str:
@@ -259,5 +302,5 @@ FAMILY = register(Family(
     fit_inputs=fit_inputs, results_view="horizon", export_csv=export_csv, c_header=c_header,
     sensor_kinds=("horizon",), reads_source=True, reading_s=READING_S))
 
-__all__ = ["FAMILY", "DESCRIPTOR", "GRID", "CHECK", "METHOD", "bench_data", "body_direction_of", "grid_points",
-           "horizon_grid_plan", "read", "roll_pitch_of_direction"]
+__all__ = ["FAMILY", "DESCRIPTOR", "GRID", "CHECK", "IFOV_KEY", "METHOD", "bench_data", "body_direction_of",
+           "grid_points", "horizon_grid_plan", "read", "recorded_ifov_half_angle_deg", "roll_pitch_of_direction"]

@@ -7,7 +7,8 @@ The document (:func:`horizon_document`) is a plain dict of JSON types:
     {"format": "sunbench-horizon-calibration", "version": 1, "family": "horizon", "sensor_id": str | null,
      "model": {"crossing": str, "ifov": str, "phase": str, "mount": str, "mount_pitch": str},
      "design": {"ifov_half_angle_deg": float, "locator_level": float},
-     "parameters": {name: {"value": float, "sd": float | null, "fitted": bool, "nominal": float, "unit": "deg"}},
+     "parameters": {name: {"value": float, "sd": float | null, "fitted": bool, "nominal": float, "unit": "deg",
+                           "note": str (a parameter not fitted: why)}},
      "covariance": {"names": [str], "matrix": [[float]]}, "correlation": {"names": [str], "matrix": [[float]]},
      "identifiability": {"condition_number": float, "trades": [str]},
      "fit": {"chi2_dof": float, "dof": int, "uncertainty_scale": float ≥ 1, "rms_deg": float, "n_scans": int,
@@ -20,8 +21,10 @@ The document (:func:`horizon_document`) is a plain dict of JSON types:
                                       "residual_deg", "reason"}]}
 
 ``parameters`` names: :data:`calibration.horizon.bench_fit.ALL_PARAMETERS` (γ1, γ2, o1, o2, Δρ, the mount's roll, yaw
-and pitch; the pitch never fitted, folded into the offsets). ``design`` holds what the crossing model knows and never
-fits: the IFOV's half-angle α of its curvature bias b(ρ, α) and the locator's level it is taken at (seed 004
+and pitch; the pitch never fitted, folded into the offsets). A cone of which the fitted scans hold no edge (no scans of
+it, a dead detector, a pulse saturated all run) leaves its γ_k and o_k unfitted: ``"fitted": false``, ``sd`` null, the
+value the fit started from (the nominal one) and a ``note`` saying so. ``design`` holds what the crossing model knows
+and never fits: the IFOV's half-angle α of its curvature bias b(ρ, α) and the locator's level it is taken at (seed 004
 §2-4-2, eq. 2.1, C1 = 0.5); a document without it was fitted without that bias and reads back with α = 0.
 :func:`sensor_parameters_from_document` gives them back as
 :class:`~calibration.horizon.bench_fit.HorizonSensorParameters`; :func:`c_header` writes what a microcontroller
@@ -76,6 +79,9 @@ def horizon_document(fit: HorizonBenchFit) -> dict:
     nominal = NOMINAL.to_dict()
     parameters = {n: {"value": v, "sd": fit.sd.get(n), "fitted": n in fit.free, "nominal": nominal[n], "unit": "deg"}
                   for n, v in fit.parameters.to_dict().items()}
+    for name, entry in parameters.items():
+        if not entry["fitted"]:
+            entry["note"] = _not_fitted_note(name, entry["value"])
     doc = {"format": FORMAT, "version": HORIZON_FORMAT_VERSION, "family": FAMILY, "sensor_id": fit.sensor_id,
            "model": dict(MODEL), "parameters": parameters,
            "design": {"ifov_half_angle_deg": fit.parameters.ifov_half_angle_deg, "locator_level": LOCATOR_LEVEL},
@@ -92,6 +98,16 @@ def horizon_document(fit: HorizonBenchFit) -> dict:
     doc = plain(doc)
     validate_horizon_document(doc)
     return doc
+
+
+def _not_fitted_note(name: str, value: float) -> str:
+    """Why a parameter of the document was not fitted, in words."""
+    if name == "mount_pitch_deg":
+        return ("given, never fitted: a turn about the spin axis is a phase offset of both cones (model.mount_pitch); "
+                f"{value:g}°")
+    cone = name[-5]  # gamma1_deg, phase_offset2_deg: the cone's digit
+    return (f"not fitted: the fitted scans hold no edge of cone {cone} (no scans of it, a dead detector, or its pulse "
+            f"saturated all run); kept at {value:g}° (the fit's start, the nominal sensor's by default)")
 
 
 def _number(value, what: str, *, allow_none: bool = False) -> float | None:
@@ -129,6 +145,8 @@ def validate_horizon_document(doc) -> None:
         sd = _number(entry.get("sd"), f"parameter `{name}`: sd", allow_none=True)
         if sd is not None and sd < 0:
             raise CalibrationFormatError(f"parameter `{name}`: sd {sd} is negative")
+        if not isinstance(entry.get("note", ""), str):
+            raise CalibrationFormatError(f"parameter `{name}`: the note must be text, got {entry['note']!r}")
         if name.startswith("gamma") and not 0.0 < value < 90.0:
             raise CalibrationFormatError(f"parameter `{name}`: a cone half-angle of {value}° is not in (0, 90)°")
         if name == "radius_bias_deg" and abs(value) >= 10.0:
@@ -172,12 +190,29 @@ def _c_number(value: float) -> str:
     return f"{value:.9g}"
 
 
+#: The header's model radius: ρ − b + Δρ with b's leading term cot ρ · a²/6, a = radians(α) (seed 004 §2-4-2); it
+#: differs from the exact cap overlap of :func:`~calibration.horizon.bench_fit.model_disc_radius_deg` by < 3e-6° for
+#: α ≤ 2° (< 1e-6° for ρ ≥ 64°) and < 1e-4° for α ≤ 5°, over ρ of 50…78°
+_C_MODEL_RADIUS = [
+    "/* The angular radius [deg] of the circle about the disc's centre on which the sensor reports the edge of a disc",
+    " * of angular radius rho_deg: rho - b + SUNBENCH_HORIZON_RADIUS_BIAS_DEG, b ~ cot(rho) * a^2 / 6 [rad] with",
+    " * a = radians(SUNBENCH_HORIZON_IFOV_HALF_ANGLE_DEG): within 3e-6 deg of the exact IFOV overlap for a <= 2 deg */",
+    "static inline double sunbench_horizon_model_radius_deg(double rho_deg)",
+    "{",
+    "    const double deg = 3.14159265358979323846 / 180.0;",
+    "    const double a = SUNBENCH_HORIZON_IFOV_HALF_ANGLE_DEG * deg;",
+    "    return rho_deg - a * a / (6.0 * tan(rho_deg * deg)) / deg + SUNBENCH_HORIZON_RADIUS_BIAS_DEG;",
+    "}",
+]
+
+
 def c_header(doc: dict, *, provenance: dict | None = None) -> str:
     """A C header of a horizon calibration for the sensor's MCU: the corrected cone half-angles, phase offsets and
     threshold bias and the design's IFOV half-angle as ``#define``s, and the mount rotation M (row-major, body axes in
     the table's frame as columns), so that firmware solving seed 004 eq. 2.7 for roll and pitch uses γ_k, subtracts
     o_k from each cone's phase and takes ρ − b(ρ, α) + Δρ for the Earth's angular radius of eq. 2.3 (b the IFOV's
-    curvature bias at the 50 % threshold, seed 004 §2-4-2).
+    curvature bias at the 50 % threshold, seed 004 §2-4-2; the header's ``sunbench_horizon_model_radius_deg(ρ)``
+    computes it with b's leading term cot ρ · a²/6, a = α in radians: within 3e-6° of the fit's exact model for α ≤ 2°).
 
     References
     ----------
@@ -194,8 +229,10 @@ def c_header(doc: dict, *, provenance: dict | None = None) -> str:
     lines += [" * phase_k = 360 * t / T - SUNBENCH_HORIZON_PHASE_OFFSETk_DEG; crossing where",
               " * S_k(phase)·n = cos(rho - b + SUNBENCH_HORIZON_RADIUS_BIAS_DEG), S_k = (sin d sin g_k, s_k cos g_k,"
               " cos d sin g_k),",
-              " * b = the IFOV's curvature bias at the 50 % threshold, ~ cot(rho) * a^2 / 6 [rad] with"
-              " a = SUNBENCH_HORIZON_IFOV_HALF_ANGLE_DEG", " */", f"#ifndef {guard}", f"#define {guard}", ""]
+              " * b = the IFOV's curvature bias at the 50 % threshold, b ~ cot(rho) * a^2 / 6 [rad]",
+              " *     with a = radians(SUNBENCH_HORIZON_IFOV_HALF_ANGLE_DEG), the IFOV's half-angle in radians",
+              " * (sunbench_horizon_model_radius_deg() below gives rho - b + SUNBENCH_HORIZON_RADIUS_BIAS_DEG [deg])",
+              " */", f"#ifndef {guard}", f"#define {guard}", "", "#include <math.h>", ""]
     names = {"gamma1_deg": "GAMMA1_DEG", "gamma2_deg": "GAMMA2_DEG", "phase_offset1_deg": "PHASE_OFFSET1_DEG",
              "phase_offset2_deg": "PHASE_OFFSET2_DEG", "radius_bias_deg": "RADIUS_BIAS_DEG"}
     for name, macro in names.items():
@@ -209,5 +246,5 @@ def c_header(doc: dict, *, provenance: dict | None = None) -> str:
     lines += ["", "/* The mount M: body axes (columns) in the bench table's frame; n_body = M^T n_table */",
               "static const double SUNBENCH_HORIZON_MOUNT[3][3] = {"]
     lines += ["    {" + ", ".join(_c_number(v) for v in row) + "}," for row in m]
-    lines += ["};", "", f"#endif /* {guard} */", ""]
+    lines += ["};", ""] + _C_MODEL_RADIUS + ["", f"#endif /* {guard} */", ""]
     return "\n".join(lines)

@@ -580,7 +580,8 @@ class HorizonBenchFit:
     ----------
     parameters : HorizonSensorParameters
     free : tuple of str
-        The fitted parameters (a cone without data keeps its nominal γ and offset).
+        The fitted parameters (a cone without an edge found keeps its γ and offset where the fit started, the
+        nominal ones by default: :func:`cones_with_edges`).
     sd : dict of str to float
         1σ of each fitted parameter [°], from `covariance`.
     covariance : ndarray (F, F)
@@ -636,9 +637,19 @@ class HorizonBenchFit:
 _CONE_PARAMETERS = {1: ("gamma1_deg", "phase_offset1_deg"), 2: ("gamma2_deg", "phase_offset2_deg")}
 
 
+def cones_with_edges(data: HorizonBenchData) -> tuple:
+    """The cones (1, 2) of which `data` holds at least one edge found (a finite phase). A cone without scans, or whose
+    detector found no edge in any of them (a dead detector, a pulse saturated all run: its rows' phases are all NaN),
+    has nothing to determine its own parameters γ_k and o_k (seed 004 eqs. 2.5–2.7: only cone k's crossings
+    depend on them)."""
+    found = np.isfinite(data.phases()).any(axis=1)
+    return tuple(c for c in (1, 2) if np.any(found & (data.cone == c)))
+
+
 def _free_parameters(data: HorizonBenchData) -> tuple:
-    """The parameters the data can fit: a cone without scans keeps its nominal γ and offset."""
-    fixed = {n for cone, names in _CONE_PARAMETERS.items() if cone not in set(data.cone.tolist()) for n in names}
+    """The parameters the data can fit: a cone without an edge found keeps its γ and offset where the fit starts."""
+    cones = cones_with_edges(data)
+    fixed = {n for cone, names in _CONE_PARAMETERS.items() if cone not in cones for n in names}
     return tuple(n for n in PARAMETERS if n not in fixed)
 
 
@@ -847,10 +858,15 @@ def _heldout(data: HorizonBenchData, fit: HorizonBenchFit, noise: EdgeNoise) -> 
 def _warnings(data: HorizonBenchData, fit: HorizonBenchFit, scores: dict | None) -> list:
     out = []
     fitted = data.subset(~data.check)
-    missing = [f"cone {c}" for c in (1, 2) if c not in set(fitted.cone.tolist())]
-    if missing:
-        out.append(f"no scans of {' or '.join(missing)}: its cone angle and phase offset are not fitted (kept at the "
-                   "nominal 70° and 0°)")
+    cones = cones_with_edges(fitted)
+    for c in (1, 2):
+        if c in cones:
+            continue
+        scans = int(np.unique(fitted.scan[fitted.cone == c]).size)
+        why = f"no scans of cone {c}" if not scans else (
+            f"cone {c} found no edge in any of its {scans} scans (a dead detector, or its pulse saturated all run)")
+        out.append(f"{why}: its cone angle gamma{c}_deg and phase offset phase_offset{c}_deg are not fitted (kept at "
+                   f"{float(fit.parameters.gamma_deg(c)):g}° and {float(fit.parameters.phase_offset_deg(c)):g}°)")
     if fit.noise.source == "residuals":
         out.append("no repeated scans at a pose: the noise is taken from the fit's residuals, so χ²/dof says nothing "
                    "of the model's misfit; measure `repeats` ≥ 2")
@@ -868,8 +884,9 @@ def _warnings(data: HorizonBenchData, fit: HorizonBenchFit, scores: dict | None)
     if span < 20.0:
         out.append(f"roll spans {span:.1f}°: the mount's yaw (it moves the chord's centre by ψ sin φ) and roll and the "
                    "cones' difference are told from the phase offsets and the cone angles by roll; " + _SPAN_ROLL)
-    if fit.n_missing:
-        out.append(f"{fit.n_missing} edge(s) not found by the module (left out)")
+    lost = fit.n_missing - int(np.sum(~np.isin(fitted.cone, cones))) * len(EDGES)  # beyond a cone without any, said
+    if lost:
+        out.append(f"{lost} edge(s) not found by the module (left out)")
     if fit.rejected:
         out.append(f"{len(fit.rejected)} edge(s) rejected as outliers (> {OUTLIER_SIGMA:g} σ)")
     if scores is not None:

@@ -30,6 +30,8 @@ part) or long form; nodes in brackets are optional::
     IRIS:SPEed?                        its speed [°/s]
     IRIS:LIMits?                       <low>,<high> [°]
     IRIS:MOVing?                       1 while it moves or settles, else 0
+    IRIS:STOP                          stop the iris where it is: its target becomes its position (MOVing? 1 while
+                                       it settles, iris_settle_s); an iris whose drive slips stops reporting a move
     COVer[:STATe] OPEN|CLOSe           open / close the cold cover
     COVer[:STATe]?                     OPEN | CLOSED | MOVING
     STATus?                            status word: bit 0 heater on, 1 disc settled, 2 iris moving, 3 cover open,
@@ -191,8 +193,15 @@ class EarthSimulatorModel:
         now = self.clock.now()
         self._iris_from, self._iris_to, self._iris_t0 = self.iris_deg(now), float(radius_deg), now
 
+    def stop_iris(self) -> None:
+        """Stop where it is: the target becomes the position, then it settles (``IRIS:STOP``)."""
+        now = self.clock.now()
+        here = self.iris_deg(now)
+        self._iris_from, self._iris_to, self._iris_t0 = here, here, now
+
     def iris_moving(self) -> bool:
-        return self.iris_stuck or self.clock.now() < self._iris_done_s()
+        # a slipping drive: the controller reports a move for as long as it has somewhere to go
+        return self.iris_stuck and self._iris_to != self._iris_from or self.clock.now() < self._iris_done_s()
 
     def observe_iris(self) -> None:
         if self.clock.instant and not self.iris_stuck:
@@ -231,7 +240,7 @@ class EarthSimulatorModel:
         self.heater_on, self.heater_faulted = False, True
 
     def stick_iris(self) -> None:
-        """The iris stops where it is; the controller keeps reporting a move that never ends."""
+        """The iris stops where it is; the controller keeps reporting a move that never ends (until told to stop)."""
         self._iris_from = self.iris_deg()
         self.iris_stuck = True
 
@@ -307,7 +316,7 @@ class EarthSimulatorSimulator(LineDevice):
             "IRIS:MOVing": self._iris_moving, "COVer[:STATe]": self._cover_state, "STATus": self._status}
         sets: dict[str, Callable[[str], None]] = {
             "*RST": self._rst, "*CLS": self._cls, "HEATer[:STATe]": self._heater, "HEATer:TEMPerature": self._setpoint,
-            "IRIS[:RADius]": self._iris, "COVer[:STATe]": self._cover}
+            "IRIS[:RADius]": self._iris, "IRIS:STOP": self._iris_stop, "COVer[:STATe]": self._cover}
         self._queries = [(_nodes(p), h) for p, h in queries.items()]
         self._sets = [(_nodes(p), h) for p, h in sets.items()]
 
@@ -414,6 +423,10 @@ class EarthSimulatorSimulator(LineDevice):
         if not low <= radius <= high:
             raise _Error(-222)
         self.model.move_iris(radius)
+
+    def _iris_stop(self, argument: str) -> None:
+        self._nothing(argument)
+        self.model.stop_iris()
 
     def _iris_moving(self) -> str:
         self.model.observe_iris()

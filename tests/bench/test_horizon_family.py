@@ -27,7 +27,7 @@ from bench.families.horizon import (
 )
 from bench.messages import CloseShutter, LampOn, Measure, OpenShutter, SetDiscRadius, WaitWarm
 from bench.preflight import preflight_campaign
-from bench.runner import check_campaign, open_session, run_campaign
+from bench.runner import PreflightRefused, check_campaign, open_session, run_campaign
 from calibration.geometry import direction_vector
 from calibration.horizon.bench_fit import PARAMETERS, HorizonBenchData, fit_horizon_bench
 from calibration.horizon.scan import earth_angular_radius_deg, nadir_in_body
@@ -198,21 +198,31 @@ def test_the_example_campaign_passes_its_preflight_on_the_example_bench(horizon_
     assert len(report.points) == campaign.planned_points() == 3 * (7 * 5 + 4)
 
 
-def test_a_disc_radius_outside_the_iris_limits_fails_the_run(tmp_path):
-    """The iris's soft limits (50…78°): a radius for 150 km is refused by the driver, the run fails and says so."""
+def test_a_disc_radius_outside_the_iris_limits_is_refused_by_preflight(tmp_path):
+    """The iris's soft limits (50…78°): altitudes 400 and 120 km ask 70.22° and 79.02° (seed 004 eq. 2.3); preflight
+    refuses the campaign naming the second radius and the limits, before anything moves or lights (no run is made; the
+    disc stays cold behind its closed cover, the iris and the table where they stood)."""
     campaign = Campaign(name="h", plan="horizon-grid", sensors=("HZ-0001",),
-                        horizon_grid=HorizonGridProcedure(disc_radii_deg=(30.0,), roll_range_deg=0, pitch_range_deg=0,
-                                                          roll_step_deg=1, pitch_step_deg=1, repeats=1,
-                                                          check_points=0))
+                        horizon_grid=HorizonGridProcedure(altitudes_km=(400.0, 120.0), roll_range_deg=0,
+                                                          pitch_range_deg=0, roll_step_deg=1, pitch_step_deg=1,
+                                                          repeats=1, check_points=0))
+    too_wide = float(earth_angular_radius_deg(120.0))
+    assert 78.0 < too_wide < 80.0  # within the iris's mechanics (45…80°), outside the bench's soft limits
     bench = load_bench_file(EXAMPLES / "bench-sim-horizon.yaml")
     with Catalogue(tmp_path / "c.sqlite") as catalogue:
         session = open_session(bench, catalogue, time_scale=0.0)
         try:
-            (run_id,) = run_campaign(campaign, session, confirm_mount=lambda *a: True)
+            earth, table = session.devices.sim.earth, session.devices.table
+            before = table.position()
+            with pytest.raises(PreflightRefused) as info:
+                run_campaign(campaign, session, confirm_mount=lambda *a: True)
+            assert table.position() == before and earth.iris_deg() == 68.0 and earth.iris_target_deg == 68.0
+            assert not earth.heater_on and earth.cover_state() == "CLOSED"
         finally:
             session.close()
-        run = catalogue.run(run_id)
-    assert run["status"] == "failed" and "30" in run["exit_reason"], run["exit_reason"]
+        assert catalogue.runs() == []
+    (violation,) = info.value.violations
+    assert f"disc radius {too_wide:.4f}°" in violation and "outside the soft limits [50.0, 78.0]" in violation
 
 
 # --- a simulated run end to end --------------------------------------------------------------------------------------
@@ -334,3 +344,87 @@ def test_the_stated_uncertainty_covers_the_simulated_sensors_build_over_noise_dr
           f"{np.mean(np.abs(z) < 1):.0%} within 1σ, χ²/dof {min(chi2):.2f}…{max(chi2):.2f}")
     assert 0.7 < rms < 1.35 and np.abs(z).max() < 3.5
     assert 0.8 < min(chi2) and max(chi2) < 1.25
+
+
+# --- a dead detector, the sensor's own IFOV (issue 15 review) --------------------------------------------------------
+
+def test_a_dead_detector_leaves_its_cone_unfitted_and_the_run_is_still_fitted(tmp_path):
+    """Cone 2's bolometer open all run (the simulator's back door): every reading has cone 1's edges only, the fit at
+    the run's end fits cone 1's γ and offset, Δρ and the mount and keeps cone 2's nominal — the document and the
+    run's journal say why —, and the calibrated sensor still reads the table's roll and pitch at the check points."""
+    bench = load_bench_file(EXAMPLES / "bench-sim-horizon.yaml")
+    campaign = Campaign(name="h", plan="horizon-grid", sensors=("HZ-0001",), horizon_grid=SMALL)
+    with Catalogue(tmp_path / "c.sqlite") as catalogue:
+        session = open_session(bench, catalogue, time_scale=0.0)
+        try:
+            session.devices.sim.devices["sensor"].kill_detector(2)
+            (run_id,) = run_campaign(campaign, session, confirm_mount=lambda *a: True)
+        finally:
+            session.close()
+        run = catalogue.run(run_id)
+        assert run["status"] == "completed", run["exit_reason"]
+        readings = catalogue.readings(run_id)
+        assert readings and all(r.ok and r.values["t_out_s"][1] is None and r.values["t_out_s"][0] is not None
+                                for r in readings)
+        (calibration,) = catalogue.calibrations(run_id)
+        doc = calibration["document"]
+        journal = " ".join(e["message"] for e in catalogue.events(run_id))
+    p = doc["parameters"]
+    for name in ("gamma2_deg", "phase_offset2_deg"):
+        assert not p[name]["fitted"] and p[name]["value"] == p[name]["nominal"]
+        assert "no edge of cone 2" in p[name]["note"]
+    assert all(p[n]["fitted"] and 0 < p[n]["sd"] < 0.01 for n in ("gamma1_deg", "phase_offset1_deg", "radius_bias_deg",
+                                                                  "mount_roll_deg", "mount_yaw_deg"))
+    assert abs(p["gamma1_deg"]["value"] - 70.023) < 5 * p["gamma1_deg"]["sd"] + 1e-3  # the build's cone 1
+    assert "cone 2 found no edge" in journal
+    check = doc["heldout"]["check"]["calibrated"]
+    assert check["n_scans"] == 2 * 3 * 2 and check["roll_rms_deg"] < 0.02 and check["pitch_rms_deg"] < 0.02
+
+
+def test_the_sensors_ifov_is_recorded_fitted_with_and_exported(tmp_path):
+    """A sensor built with a 1.5° IFOV (the bench file's simulation.horizon): its IDENTIFY's half-angle is kept as the
+    run's value, the fit's crossing model takes it (the document's design says 1.5, and every parameter comes back
+    within 3σ of the build — with the design's 2° assumed instead Δρ is off by the curvature biases' difference, ≈ 2
+    mdeg, many σ), and the exported CSV carries it as `# ifov_half_angle_deg: 1.5`, which `fit horizon` reads back."""
+    from dataclasses import replace
+
+    import yaml
+
+    from bench.horizon_datafile import read_horizon_csv
+
+    spec = yaml.safe_load((EXAMPLES / "bench-sim-horizon.yaml").read_text())
+    spec["simulation"]["horizon"]["ifov_half_angle_deg"] = 1.5
+    path = tmp_path / "bench.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    campaign = Campaign(name="h", plan="horizon-grid", sensors=("HZ-0001",), horizon_grid=RUN_GRID)
+    with Catalogue(tmp_path / "c.sqlite") as catalogue:
+        session = open_session(load_bench_file(path), catalogue, time_scale=0.0)
+        try:
+            assert session.devices.sensor.identify().ifov_half_angle_deg == 1.5
+            (run_id,) = run_campaign(campaign, session, confirm_mount=lambda *a: True)
+            truth = session.devices.sim.devices["sensor"].truth
+            world = session.devices.sim.world
+            tilts = (world.mount_tilt_x_deg, world.mount_tilt_y_deg)
+        finally:
+            session.close()
+        assert catalogue.run(run_id)["status"] == "completed"
+        assert catalogue.run_value(run_id, "ifov_half_angle_deg") == 1.5
+        (calibration,) = catalogue.calibrations(run_id)
+        doc = calibration["document"]
+        family("horizon").export_csv(catalogue, [run_id], tmp_path / "hz.csv", "HZ-0001")
+    assert doc["design"]["ifov_half_angle_deg"] == 1.5 == truth.ifov_half_angle_deg
+    assert (tmp_path / "hz.csv").read_text().startswith("# ifov_half_angle_deg: 1.5\n")
+    data = read_horizon_csv(tmp_path / "hz.csv")
+    assert data.ifov_half_angle_deg == 1.5
+    fitted = ~data.check
+    poses = sorted({(float(r), float(p), float(q)) for r, p, q in
+                    zip(data.roll_deg[fitted], data.pitch_deg[fitted], data.disc_radius_deg[fitted])})
+    expected = simulated_truth(truth, tilts, poses)
+    p = doc["parameters"]
+    z = {n: (p[n]["value"] - getattr(expected, n)) / p[n]["sd"] for n in PARAMETERS}
+    assert all(abs(v) < 3.0 for v in z.values()), z
+    assumed = fit_horizon_bench(replace(data, ifov_half_angle_deg=2.0), heldout=False)
+    missed = assumed.parameters.radius_bias_deg - expected.radius_bias_deg
+    print(f"\nα 1.5° recorded: z {({n: round(float(v), 2) for n, v in z.items()})}; the design's 2° assumed: Δρ off by "
+          f"{missed * 1000:+.2f} mdeg ({missed / assumed.sd['radius_bias_deg']:+.0f} σ)")
+    assert abs(missed) > 1e-3 and abs(missed) > 5 * assumed.sd["radius_bias_deg"]

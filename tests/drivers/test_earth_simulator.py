@@ -60,10 +60,50 @@ def test_setpoints_outside_the_limits_are_refused_before_sending():
             source(port, temperature_limits_k=(250.0, 320.0), standby_temperature_k=240.0)
 
 
-def test_the_iris_moves_and_is_polled_until_it_has_settled():
+def test_the_iris_moves_and_is_polled_until_it_has_settled_at_its_target():
     with scripted_port([(b"IRIS?\n", b"68.0000\n"), (b"IRIS:SPE?\n", b"0.5000\n"), (b"IRIS 64.3000\n", b""), OK,
-                        (b"IRIS:MOV?\n", b"1\n"), (b"IRIS:MOV?\n", b"1\n"), (b"IRIS:MOV?\n", b"0\n")]) as port:
+                        (b"IRIS:MOV?\n", b"1\n"), (b"IRIS:MOV?\n", b"1\n"), (b"IRIS:MOV?\n", b"0\n"),
+                        (b"IRIS?\n", b"64.3000\n")]) as port:
         source(port).set_disc_radius_deg(64.3)
+
+
+def test_a_moving_flag_raised_late_does_not_end_the_wait():
+    """Right after the set the controller still says "not moving" and the iris reads where it stood: not settled; the
+    wait goes on until it has moved and reads the target (within the driver's 0.005°)."""
+    with scripted_port([(b"IRIS 64.3000\n", b""), OK, (b"IRIS:MOV?\n", b"0\n"), (b"IRIS?\n", b"68.0000\n"),
+                        (b"IRIS:MOV?\n", b"1\n"), (b"IRIS:MOV?\n", b"0\n"), (b"IRIS?\n", b"64.2970\n")]) as port:
+        source(port).set_disc_radius_deg(64.3, timeout_s=10.0)  # 64.297 is 0.003° off: settled
+    with scripted_port([(b"IRIS 64.3000\n", b""), OK, (b"IRIS:MOV?\n", b"0\n"), (b"IRIS?\n", b"68.0000\n"),
+                        (b"IRIS:MOV?\n", b"0\n"), (b"IRIS?\n", b"64.3100\n")]) as port:
+        earth = source(port)
+        earth.set_disc_radius_deg(64.3, wait=False)
+        assert not earth.disc_settled() and not earth.disc_settled()  # 0.01° off the target: not settled either
+
+
+def test_settled_without_a_target_of_its_own_asks_the_controllers():
+    with scripted_port([(b"IRIS:MOV?\n", b"0\n"), (b"IRIS:TARG?\n", b"66.0000\n"), (b"IRIS?\n", b"66.0010\n"),
+                        (b"IRIS:STOP\n", b""), OK, (b"IRIS:MOV?\n", b"0\n"), (b"IRIS:TARG?\n", b"65.1000\n"),
+                        (b"IRIS?\n", b"65.1000\n")]) as port:
+        earth = source(port)
+        assert earth.disc_settled()
+        earth.stop_iris()  # the controller's target is now where it stopped
+        assert earth.disc_settled()
+
+
+def test_an_iris_speed_that_is_not_positive_is_a_protocol_error_naming_it():
+    for answer in (b"0.0000\n", b"-0.5000\n"):
+        with scripted_port([(b"IRIS?\n", b"68.0000\n"), (b"IRIS:SPE?\n", answer)]) as port:
+            with pytest.raises(ProtocolError, match=r"IRIS:SPE\?.*speed must be positive.*answered -?0(\.5)? deg/s"):
+                source(port).set_disc_radius_deg(64.3)
+
+
+def test_the_soft_limits_are_told_and_checked_without_a_word_on_the_wire():
+    with scripted_port([]) as port:
+        earth = source(port, radius_limits_deg=(55.0, 75.0))
+        assert earth.radius_limits_deg == (55.0, 75.0)
+        earth.check_disc_radius(75.0)
+        with pytest.raises(LimitError, match=r"79.0° is outside the soft limits \[55.0, 75.0\]"):
+            earth.check_disc_radius(79.0)
 
 
 def test_the_iris_soft_limits_are_checked_before_anything_is_sent():
@@ -83,6 +123,8 @@ def test_a_stuck_iris_times_out_naming_where_it_stopped():
 def test_the_cover_opens_and_a_stuck_cover_is_a_fault():
     with scripted_port([(b"COV OPEN\n", b""), OK, (b"COV?\n", b"MOVING\n"), (b"COV?\n", b"OPEN\n")]) as port:
         source(port).open_shutter()
+    with scripted_port([(b"COV OPEN\n", b""), OK]) as port:
+        source(port).open_shutter(wait=False)  # told to open, not waited for
     with scripted_port([(b"COV CLOS\n", b""), OK, (b"COV?\n", b"OPEN\n"), (b"COV?\n", b"OPEN\n")]) as port:
         with pytest.raises(DeviceFault, match=r"cover closing not finished after 0.0 s \(the cover reads OPEN\)"):
             source(port, cover_timeout_s=0.0).close_shutter()

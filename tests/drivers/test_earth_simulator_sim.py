@@ -61,6 +61,27 @@ def test_the_iris_takes_its_travel_and_settling(earth):
     assert driver.disc_radius_deg() == 64.0 and driver.disc_settled()
 
 
+def test_told_to_stop_the_iris_stops_where_it_is_and_settles_there(earth):
+    """4 s into a 68° → 60° move (2° travelled at 0.5°/s) IRIS:STOP: the target becomes 66°, the iris settles there in
+    its 0.5 s and stays; an iris whose drive slips reports a move until told to stop, then reports none."""
+    model, driver, wall = earth
+    driver.set_disc_radius_deg(60.0, wait=False)
+    wall.now += 4.0
+    driver.stop_iris()
+    assert driver.iris_target_deg() == pytest.approx(66.0) and not driver.disc_settled()  # settling
+    wall.now += 0.5
+    assert driver.disc_settled() and driver.disc_radius_deg() == pytest.approx(66.0)
+    wall.now += 10.0
+    assert driver.disc_radius_deg() == pytest.approx(66.0) and driver.disc_settled()
+    model.stick_iris()
+    driver.set_disc_radius_deg(62.0, wait=False)
+    wall.now += 30.0
+    assert not driver.disc_settled() and driver.disc_radius_deg() == pytest.approx(66.0)
+    driver.stop_iris()
+    wall.now += 0.5
+    assert driver.disc_settled() and driver.iris_target_deg() == pytest.approx(66.0)
+
+
 def test_the_disc_follows_its_thermal_time_constant(earth):
     model, driver, wall = earth
     driver.set_disc_temperature_k(310.0)

@@ -185,7 +185,8 @@ def test_the_horizon_routes_refuse_other_families_runs_and_theirs_refuse_a_horiz
 def test_the_results_pages_downloads_of_a_horizon_run(finished):
     client, run, catalogue = finished
     csv = client.get(f"/api/runs/{run['id']}/data.csv", headers=AUTH)
-    assert csv.status_code == 200 and "phase_out_deg" in csv.text.splitlines()[0]
+    lines = csv.text.splitlines()  # the sensor's IFOV as a header comment, then the columns
+    assert csv.status_code == 200 and lines[0].startswith("# ifov_half_angle_deg: ") and "phase_out_deg" in lines[1]
     header = client.get(f"/api/calibrations/{run['id']}/crossings.h", headers=AUTH)
     assert header.status_code == 200 and "SUNBENCH_HORIZON_GAMMA1_DEG" in header.text
 

@@ -283,3 +283,40 @@ def test_a_bad_ifov_half_angle_is_refused(alpha):
     with pytest.raises(BenchDataError) as info:
         HorizonBenchData([0.0], [0.0], [1], [66.0], [294.0], [68.0], ifov_half_angle_deg=alpha)
     assert info.value.column == "ifov_half_angle_deg"
+
+
+# --- a cone that never found an edge ---------------------------------------------------------------------------------
+
+def test_a_cone_that_found_no_edge_is_not_fitted_and_the_document_says_so():
+    """Cone 2's rows are there but every phase is NaN (a dead detector, or its pulse saturated all run, as the bench's
+    data records them): its γ2 and o2 are not fitted — the fit no longer stops on their zero Jacobian columns ("the
+    data do not constrain gamma2_deg, phase_offset2_deg") —, the other five come back within their stated 1σ's few,
+    each radius left out is refitted on cone 1 alone, and the document keeps γ2, o2 nominal with a note saying why."""
+    data = synthetic(rolls=np.arange(-30.0, 30.1, 15.0), pitches=np.array([-15.0, 0.0, 15.0]), repeats=2, seed=8,
+                     check=[(-25.0, 12.0, RADII[1]), (17.0, -9.0, RADII[0])])
+    dead = data.cone == 2
+    blind = replace(data, phase_out_deg=np.where(dead, np.nan, data.phase_out_deg),
+                    phase_in_deg=np.where(dead, np.nan, data.phase_in_deg))
+    fit = fit_horizon_bench(blind)
+    assert fit.free == ("gamma1_deg", "phase_offset1_deg", "radius_bias_deg", "mount_roll_deg", "mount_yaw_deg")
+    z = {n: (getattr(fit.parameters, n) - getattr(RECOVERABLE, n)) / fit.sd[n] for n in fit.free}
+    assert all(abs(v) < 3.5 for v in z.values()), z
+    assert fit.parameters.gamma2_deg == NOMINAL.gamma2_deg and fit.parameters.phase_offset2_deg == 0.0
+    text = " ".join(fit.warnings)
+    assert "cone 2 found no edge in any of its" in text and "gamma2_deg and phase offset phase_offset2_deg are " \
+        "not fitted" in text, fit.warnings
+    assert "not found by the module" not in text and fit.n_missing == 2 * int(dead[~data.check].sum())
+    assert all(e.get("parameters") is not None for e in fit.heldout["radius_out"])
+    check = fit.heldout["check"]["calibrated"]
+    assert check["n_scans"] == 2 * 2 and check["n_failed"] == 0
+    doc = horizon_document(fit)
+    for name in ("gamma2_deg", "phase_offset2_deg"):
+        entry = doc["parameters"][name]
+        assert not entry["fitted"] and entry["sd"] is None and entry["value"] == entry["nominal"]
+        assert "no edge of cone 2" in entry["note"], entry
+    assert doc["parameters"]["gamma1_deg"]["fitted"] and "note" not in doc["parameters"]["gamma1_deg"]
+    assert "given, never fitted" in doc["parameters"]["mount_pitch_deg"]["note"]
+    assert doc["covariance"]["names"] == list(fit.free) and any("cone 2 found no edge" in w for w in doc["warnings"])
+    assert "SUNBENCH_HORIZON_GAMMA2_DEG (70)  /* nominal, not fitted */" in c_header(doc)
+    # a cone absent altogether is said as before
+    assert any("no scans of cone 2" in w for w in fit_horizon_bench(data.subset(~dead), heldout=False).warnings)
