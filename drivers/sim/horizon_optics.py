@@ -49,7 +49,6 @@ import zlib
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import lfilter
 
 #: Planck's radiation constants: c1L = 2hc² [W µm⁴ m⁻² sr⁻¹], c2 = hc/k [µm K]
 C1L = 1.191042972e8
@@ -299,6 +298,8 @@ def detector_lag(signal, sample_s: float, time_constant_s: float) -> np.ndarray:
     """A first-order lag of time constant τ on a periodic signal sampled every `sample_s` [s], in its periodic
     steady state (the revolution before had the same scene): the exact response at the samples to the input taken
     linear between them (so a ramp comes out delayed by exactly τ)."""
+    from scipy.signal import lfilter  # here: scipy.signal brings scipy.stats, ~0.6 s on every `sunbench` start
+
     x = np.asarray(signal, float)
     if time_constant_s <= 0:
         return x.copy()
